@@ -1,0 +1,136 @@
+"""CP curve families, evaluated with their derivatives 0..4.
+
+Every curve is held as a :class:`PiecewisePolynomial` in the plane: pieces on breakpoints, each a
+polynomial in the local normalised time ``lam = (t - t_k) / (t_{k+1} - t_k)`` with ascending
+coefficients. The closed-form seventh-degree Hermite segment (:func:`hermite`) is one piece; B-splines (see
+:mod:`cpopt.bspline`) convert to pieces. The exact minimum of ``|p'' + g0 e_y|`` (= |gamma|) over
+a curve is computed from the roots of a polynomial, which certifies the regularity margin
+between samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import factorial
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PiecewisePolynomial:
+    """A planar curve made of polynomial pieces.
+
+    Parameters
+    ----------
+    breaks : numpy.ndarray
+        Increasing breakpoints t_0 < ... < t_m [s], shape (m + 1,).
+    coeffs : numpy.ndarray
+        Shape (m, d + 1, 2): piece k is ``sum_j coeffs[k, j] lam^j`` with
+        ``lam = (t - t_k) / (t_{k+1} - t_k)`` [m].
+    """
+
+    breaks: np.ndarray
+    coeffs: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "breaks", np.asarray(self.breaks, float))
+        object.__setattr__(self, "coeffs", np.asarray(self.coeffs, float))
+        if self.coeffs.shape[0] != self.breaks.size - 1 or np.any(np.diff(self.breaks) <= 0):
+            raise ValueError("breakpoints must increase and match the number of pieces")
+
+    @property
+    def t0(self) -> float:
+        """Start time [s]."""
+        return float(self.breaks[0])
+
+    @property
+    def t1(self) -> float:
+        """End time [s]."""
+        return float(self.breaks[-1])
+
+    def derivatives(self, t: np.ndarray, order: int = 4) -> np.ndarray:
+        """Value and time derivatives 0..order at times t.
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s] within [t0, t1] (clipped to it), shape (N,).
+        order : int
+            Highest derivative.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N, 2, order + 1): [..., k] is the k-th derivative [m/s^k].
+        """
+        t = np.clip(np.atleast_1d(np.asarray(t, float)), self.t0, self.t1)
+        k = np.clip(np.searchsorted(self.breaks, t, side="right") - 1, 0, self.coeffs.shape[0] - 1)
+        h = np.diff(self.breaks)[k]
+        lam = (t - self.breaks[k]) / h
+        deg = self.coeffs.shape[1] - 1
+        out = np.zeros((t.size, 2, order + 1))
+        c = self.coeffs[k]  # (N, d+1, 2)
+        for r in range(order + 1):
+            if r > deg:
+                break
+            # d^r/dlam^r of lam^j is j!/(j-r)! lam^(j-r)
+            acc = np.zeros((t.size, 2))
+            for j in range(deg, r - 1, -1):
+                acc = acc * lam[:, None] + c[:, j, :] * (factorial(j) / factorial(j - r))
+            out[:, :, r] = acc / h[:, None] ** r
+        return out
+
+    def min_norm_of_acceleration_plus(self, offset: tuple[float, float]) -> tuple[float, float]:
+        """Exact minimum over the curve of ``|p''(t) + offset|`` and where it occurs.
+
+        With ``offset = (0, g0)`` this is the minimum of |gamma| along the plan: the squared
+        norm is a polynomial on each piece, minimised at an end or at a real root of its
+        derivative.
+
+        Returns
+        -------
+        value : float
+            The minimum [m/s^2].
+        t : float
+            A time where it is attained [s].
+        """
+        best = (np.inf, self.t0)
+        deg = self.coeffs.shape[1] - 1
+        for k, h in enumerate(np.diff(self.breaks)):
+            polys = []
+            for i in range(2):
+                p = np.polynomial.Polynomial(self.coeffs[k, :, i]).deriv(2) / h**2
+                polys.append(p + offset[i])
+            sq = polys[0] ** 2 + polys[1] ** 2
+            cands = [0.0, 1.0]
+            if deg >= 3:
+                roots = sq.deriv().roots()
+                cands += [r.real for r in roots if abs(r.imag) < 1e-9 and 0 < r.real < 1]
+            for lam in cands:
+                val = float(np.sqrt(max(sq(lam), 0.0)))
+                if val < best[0]:
+                    best = (val, float(self.breaks[k] + lam * h))
+        return best
+
+
+def hermite(t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> PiecewisePolynomial:
+    """The polynomial of degree 2n - 1 matching derivatives 0..n-1 at both ends.
+
+    ``start`` and ``end`` are (2, n) arrays; n = 4 gives the paper's seventh degree and
+    n = 5 (pinning the fourth derivative too, for torque continuity) the ninth.
+    """
+    start, end = np.asarray(start, float), np.asarray(end, float)
+    n = start.shape[1]
+    h = t1 - t0
+    deg = 2 * n - 1
+    rows = []
+    rhs = []
+    for at, vals in ((0.0, start), (1.0, end)):
+        for r in range(n):
+            row = np.zeros(deg + 1)
+            for j in range(r, deg + 1):
+                row[j] = factorial(j) / factorial(j - r) * at ** (j - r)
+            rows.append(row)
+            rhs.append(vals[:, r] * h**r)
+    coeffs = np.linalg.solve(np.array(rows), np.array(rhs))
+    return PiecewisePolynomial(np.array([t0, t1]), coeffs[None])

@@ -1,0 +1,99 @@
+"""The arm's Lagrangian dynamics, derived symbolically once per arm.
+
+``B(q) qdd + c(q, qd) + g(q) = (tau1, tau2, 0)``: joint coordinates q as in :mod:`cpopt.robot`,
+the generalised forces of the first two (actuated) joints are their torques or forces, and the
+third joint is passive. Everything is a CasADi ``Function`` built from the kinetic and potential
+energy of :func:`cpopt.kinematics.link_geometry`.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from .kinematics import link_geometry
+from .robot import Arm
+
+
+@lru_cache(maxsize=32)
+def arm_dynamics(arm: Arm) -> dict[str, ca.Function]:
+    """Dynamics functions of an arm (built once per arm and cached).
+
+    Returns
+    -------
+    dict of casadi.Function
+        ``B(q)`` inertia matrix (3 x 3); ``n(q, qd)`` = c + g, the velocity and gravity terms;
+        ``g(q)`` gravity terms; ``inverse(q, qd, qdd) -> (tau1, tau2, residual)`` with the
+        passive joint's residual torque [N m] third; ``forward(q, qd, tau) -> qdd`` with
+        tau = (tau1, tau2) and the passive joint free; ``track(q, qd, a) -> (qdd, tau)``, the
+        joint accelerations and actuated torques that give the third link's base the Cartesian
+        acceleration ``a`` while the passive joint stays torque-free (the static feedback of
+        the paper's section 2.1, for any arm kind); ``energy(q, qd) -> (T, V)`` [J].
+    """
+    q = ca.SX.sym("q", 3)
+    qd = ca.SX.sym("qd", 3)
+    qdd = ca.SX.sym("qdd", 3)
+    tau = ca.SX.sym("tau", 2)
+    a = ca.SX.sym("a", 2)
+    geo = link_geometry(arm, q)
+
+    kinetic = 0
+    potential = 0
+    for link, com, angle in zip(arm.links, geo.com, geo.angle, strict=True):
+        v = ca.jtimes(com, q, qd)
+        w = ca.jtimes(angle, q, qd) if isinstance(angle, ca.SX) else 0
+        kinetic += 0.5 * link.mass * ca.dot(v, v) + 0.5 * link.I * w**2
+        potential += link.mass * arm.gravity * com[1]
+
+    B = ca.simplify(ca.hessian(kinetic, qd)[0])
+    dT_dqd = ca.gradient(kinetic, qd)
+    c = ca.jtimes(dT_dqd, q, qd) - ca.gradient(kinetic, q)
+    g = ca.gradient(potential, q)
+    n = c + g
+    generalized = B @ qdd + n
+    actuation = ca.vertcat(ca.SX.eye(2), ca.SX.zeros(1, 2))
+    qdd_forward = ca.solve(B, actuation @ tau - n)
+
+    # Unknowns (qdd, tau): B qdd + n = [I; 0] tau and J_w qdd + dJ_w/dt qd = a.
+    wrist = geo.wrist
+    Jw = ca.jacobian(wrist, q)
+    jdot_qd = ca.jtimes(Jw @ qd, q, qd)
+    M = ca.blockcat([[B, -actuation], [Jw, ca.SX.zeros(2, 2)]])
+    sol = ca.solve(M, ca.vertcat(-n, a - jdot_qd))
+
+    return {
+        "B": ca.Function("B", [q], [B]),
+        "n": ca.Function("n", [q, qd], [n]),
+        "g": ca.Function("g", [q], [g]),
+        "inverse": ca.Function("inverse", [q, qd, qdd], [generalized]),
+        "forward": ca.Function("forward", [q, qd, tau], [qdd_forward]),
+        "track": ca.Function("track", [q, qd, a], [sol[:3], sol[3:]]),
+        "energy": ca.Function("energy", [q, qd], [kinetic, potential]),
+    }
+
+
+def inverse_dynamics(arm: Arm, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """Joint torques along samples.
+
+    Parameters
+    ----------
+    arm : Arm
+        The arm.
+    q, qd, qdd : numpy.ndarray
+        Joint positions, velocities and accelerations, shape (N, 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 3): tau1, tau2 [N m or N] and the passive joint's residual torque [N m], which is
+        zero for a dynamically feasible motion.
+    """
+    f = arm_dynamics(arm)["inverse"].map(q.shape[0])
+    return np.asarray(f(q.T, qd.T, qdd.T)).T
+
+
+def holding_torque(arm: Arm, q: np.ndarray) -> np.ndarray:
+    """Static torques (tau1, tau2) [N m or N] that hold the arm at rest at q (3,)."""
+    return np.asarray(arm_dynamics(arm)["g"](q)).ravel()[:2]

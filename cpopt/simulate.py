@@ -1,0 +1,338 @@
+"""Verification by simulation: the reduced model, the arm's full dynamics in closed loop, and
+open-loop torque replay.
+
+* ``reduced``: model (3) with the dynamic compensator driven by the plan's v(t) = p''''(t).
+* ``closed_loop``: the arm's full Lagrangian dynamics driven by the dynamic feedback
+  linearisation (compensator + the static feedback that makes the third link's base accelerate
+  as asked, for any arm kind) with a linear stabilising law on the two chains of four
+  integrators, ``v = p_d'''' + sum_k k_k (p_d^(k) - p^(k))``, gains by pole placement.
+* ``open_loop``: the plan's nominal torques applied to the full dynamics, no feedback.
+
+The controller may use a nominal arm while the simulated plant is another (model errors).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from . import flat
+from .dynamics import arm_dynamics, inverse_dynamics
+from .kinematics import inverse_derivatives, inverse_position, kinematic_functions
+from .plan import CPPlan
+from .robot import Arm
+
+DEFAULT_POLES = (-10.0, -10.0, -10.0, -10.0)
+"""Closed-loop poles of each CP error chain [1/s]."""
+
+
+def pole_placement_gains(poles=DEFAULT_POLES) -> np.ndarray:
+    """Gains (k0, k1, k2, k3) giving the error chain e'''' + k3 e''' + ... + k0 e = 0 the poles.
+
+    Parameters
+    ----------
+    poles : sequence of float or complex
+        Four poles with negative real parts [1/s] (complex ones in conjugate pairs).
+    """
+    poles = np.asarray(poles, complex)
+    if poles.size != 4 or np.any(poles.real >= 0):
+        raise ValueError(f"give four poles with negative real parts, got {poles.tolist()}")
+    coeffs = np.poly(poles)  # s^4 + c1 s^3 + c2 s^2 + c3 s + c4
+    if np.max(np.abs(coeffs.imag)) > 1e-9 * np.max(np.abs(coeffs)):
+        raise ValueError("complex poles must come in conjugate pairs")
+    return coeffs.real[::-1][:4].copy()
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Outcome of one simulation.
+
+    Attributes
+    ----------
+    mode : str
+        ``reduced``, ``closed_loop`` or ``open_loop``.
+    t : numpy.ndarray
+        Output times [s].
+    state : numpy.ndarray
+        Simulated third-link state (N, 6): x, y, theta, xdot, ydot, thetadot.
+    cp_error : numpy.ndarray
+        |p(t) - p_d(t)| along the output times [m].
+    max_cp_error : float
+        Largest CP error [m].
+    final_state_error : float
+        Largest absolute error of (x, y, theta, xdot, ydot, thetadot) at the end against the
+        goal (theta modulo 2 pi) [m, rad, m/s, rad/s].
+    tau : numpy.ndarray or None
+        Applied torques (N, 2), where the mode computes them.
+    """
+
+    mode: str
+    t: np.ndarray
+    state: np.ndarray
+    cp_error: np.ndarray
+    max_cp_error: float
+    final_state_error: float
+    tau: np.ndarray | None = None
+
+
+def _goal_error(plan: CPPlan, state: np.ndarray) -> float:
+    goal = plan.nodes[-1].state()[:6]
+    err = state - goal
+    err[2] = (err[2] + np.pi) % (2 * np.pi) - np.pi
+    return float(np.abs(err).max())
+
+
+def _cp(K: float, s: np.ndarray) -> np.ndarray:
+    return s[:, :2] + K * np.column_stack([np.cos(s[:, 2]), np.sin(s[:, 2])])
+
+
+def _result(plan, mode, t, states, tau=None) -> SimulationResult:
+    ref = np.concatenate(
+        [ph.curve.derivatives(tt, 0)[:, :, 0] for ph, tt in zip(plan.phases, t, strict=True)]
+    )
+    t = np.concatenate(t)
+    states = np.concatenate(states)
+    err = np.linalg.norm(_cp(plan.arm.K, states) - ref, axis=1)
+    return SimulationResult(
+        mode=mode,
+        t=t,
+        state=states,
+        cp_error=err,
+        max_cp_error=float(err.max()),
+        final_state_error=_goal_error(plan, states[-1]),
+        tau=None if tau is None else np.concatenate(tau),
+    )
+
+
+def _integrate(rhs, x0, t0, t1, samples, rtol, atol):
+    t_eval = np.linspace(t0, t1, samples)
+    sol = solve_ivp(rhs, (t0, t1), x0, method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
+    if not sol.success:
+        raise RuntimeError(f"simulation failed at t = {sol.t[-1]:.4g} s: {sol.message}")
+    return sol.t, sol.y.T
+
+
+def simulate_reduced(
+    plan: CPPlan, samples: int = 201, rtol: float = 1e-11, atol: float = 1e-11
+) -> SimulationResult:
+    """Reduced model (3) + compensator driven open-loop by the plan's v(t) = p''''(t)."""
+    K, g0 = plan.arm.K, plan.arm.gravity
+    comp = flat.flat_functions(K, g0)["compensator"]
+    z = plan.nodes[0].state(after=True)
+    ts, states = [], []
+    for k, ph in enumerate(plan.phases):
+        if k:
+            z = z.copy()
+            z[7] = plan.nodes[k].state(after=True)[7]  # the planned eta reset
+
+        def rhs(t, x, curve=ph.curve):
+            v = curve.derivatives(t, 4)[0, :, 4]
+            return np.asarray(comp(x, v)[1]).ravel()
+
+        t, zs = _integrate(rhs, z, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
+        z = zs[-1]
+        ts.append(t)
+        states.append(zs[:, :6])
+    return _result(plan, "reduced", ts, states)
+
+
+@lru_cache(maxsize=16)
+def _closed_loop_function(model: Arm, plant: Arm) -> ca.Function:
+    """X' and tau for X = (q, qd, xi, eta), reference Pd (2 x 5) and gains (4,)."""
+    K, g0 = model.K, model.gravity
+    X = ca.SX.sym("X", 8)
+    Pd = ca.SX.sym("Pd", 2, 5)
+    gains = ca.SX.sym("k", 4)
+    q, qd = X[0:3], X[3:6]
+    kin = kinematic_functions(model)
+    s = kin["pose"](q)
+    sd = kin["jacobian"](q) @ qd
+    z = ca.vertcat(s, sd, X[6], X[7])
+    fl = flat.flat_functions(K, g0)
+    P = fl["output"](z)
+    v = Pd[:, 4] + (Pd[:, 0:4] - P) @ gains
+    _, zdot, a = fl["compensator"](z, v)
+    _, tau = arm_dynamics(model)["track"](q, qd, a)
+    qdd = arm_dynamics(plant)["forward"](q, qd, tau)
+    Xdot = ca.vertcat(qd, qdd, zdot[6], zdot[7])
+    return ca.Function("closed_loop", [X, Pd, gains], [Xdot, tau])
+
+
+def _pose_states(arm: Arm, X: np.ndarray) -> np.ndarray:
+    kin = kinematic_functions(arm)
+    n = X.shape[0]
+    s = np.asarray(kin["pose"].map(n)(X[:, :3].T)).T
+    J = np.asarray(kin["jacobian"].map(n)(X[:, :3].T)).T.reshape(n, 3, 3).transpose(0, 2, 1)
+    return np.column_stack([s, np.einsum("nij,nj->ni", J, X[:, 3:6])])
+
+
+def _initial_joint_state(plan: CPPlan, q_error) -> tuple[np.ndarray, np.ndarray]:
+    z0 = plan.nodes[0].state(after=True)
+    q = inverse_position(plan.arm, z0[0], z0[1], z0[2])
+    qd, _ = inverse_derivatives(plan.arm, q, z0[None, 3:6], np.zeros((1, 3)))
+    return q[0] + np.asarray(q_error, float), qd[0]
+
+
+def simulate_closed_loop(
+    plan: CPPlan,
+    poles=DEFAULT_POLES,
+    plant: Arm | None = None,
+    q_error=(0.0, 0.0, 0.0),
+    samples: int = 201,
+    rtol: float = 1e-10,
+    atol: float = 1e-10,
+) -> SimulationResult:
+    """The arm's full dynamics under dynamic feedback linearisation and linear tracking.
+
+    Parameters
+    ----------
+    plan : CPPlan
+        The plan; its arm is the controller's model.
+    poles : sequence of float
+        Poles of each CP error chain [1/s].
+    plant : Arm, optional
+        The simulated arm when it differs from the model (model errors).
+    q_error : sequence of float
+        Initial joint position error added to the plan's start [rad or m].
+    """
+    model = plan.arm
+    f = _closed_loop_function(model, plant or model)
+    gains = pole_placement_gains(poles)
+    q0, qd0 = _initial_joint_state(plan, q_error)
+    z0 = plan.nodes[0].state(after=True)
+    X = np.concatenate([q0, qd0, z0[6:8]])
+    ts, states, taus = [], [], []
+    for k, ph in enumerate(plan.phases):
+        if k:
+            X = X.copy()
+            node = plan.nodes[k]
+            X[7] += node.state(after=True)[7] - node.state()[7]  # the planned eta reset
+
+        def rhs(t, x, curve=ph.curve):
+            return np.asarray(f(x, curve.derivatives(t, 4)[0], gains)[0]).ravel()
+
+        t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
+        X = Xs[-1]
+        Pd = ph.curve.derivatives(t, 4)
+        tau = np.asarray(f.map(t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
+        ts.append(t)
+        states.append(_pose_states(plant or model, Xs))
+        taus.append(tau)
+    return _result(plan, "closed_loop", ts, states, taus)
+
+
+def plan_torque(plan: CPPlan, phase: int, t: np.ndarray) -> np.ndarray:
+    """The plan's nominal torques (N, 2) at times t inside one phase, computed exactly."""
+    arm = plan.arm
+    K, g0 = arm.K, arm.gravity
+    ph = plan.phases[phase]
+    P = ph.curve.derivatives(t, 4)
+    z = flat.inverse(P[:, :, :4], ph.sigma, K, g0)
+    _, zdot, _ = flat.compensate(z, P[:, :, 4], K, g0)
+    q = inverse_position(arm, z[:, 0], z[:, 1], z[:, 2])
+    qd, qdd = inverse_derivatives(arm, q, z[:, 3:6], zdot[:, 3:6])
+    return inverse_dynamics(arm, q, qd, qdd)[:, :2]
+
+
+def simulate_open_loop(
+    plan: CPPlan,
+    plant: Arm | None = None,
+    q_error=(0.0, 0.0, 0.0),
+    samples: int = 201,
+    rtol: float = 1e-11,
+    atol: float = 1e-11,
+) -> SimulationResult:
+    """The plan's nominal torques replayed on the arm's full dynamics without feedback."""
+    forward = arm_dynamics(plant or plan.arm)["forward"]
+    q0, qd0 = _initial_joint_state(plan, q_error)
+    X = np.concatenate([q0, qd0])
+    ts, states, taus = [], [], []
+    for k, ph in enumerate(plan.phases):
+
+        def rhs(t, x, k=k):
+            tau = plan_torque(plan, k, np.array([t]))[0]
+            return np.concatenate([x[3:], np.asarray(forward(x[:3], x[3:], tau)).ravel()])
+
+        t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
+        X = Xs[-1]
+        ts.append(t)
+        states.append(_pose_states(plant or plan.arm, Xs))
+        taus.append(plan_torque(plan, k, t))
+    return _result(plan, "open_loop", ts, states, taus)
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Errors of the three simulations of a plan (SI units).
+
+    Attributes
+    ----------
+    reduced, closed_loop, open_loop : SimulationResult
+    passive_torque_residual : float
+        Largest |torque| the plan asks of the passive joint [N m].
+    """
+
+    reduced: SimulationResult
+    closed_loop: SimulationResult
+    open_loop: SimulationResult
+    passive_torque_residual: float
+
+    @property
+    def max_cp_error(self) -> float:
+        """Largest CP error of the closed-loop simulation of the full arm [m]."""
+        return self.closed_loop.max_cp_error
+
+    @property
+    def final_state_error(self) -> float:
+        """Final-state error of the closed-loop simulation of the full arm."""
+        return self.closed_loop.final_state_error
+
+    def passed(
+        self, cp_tol: float = 1e-6, state_tol: float = 1e-5, residual_tol: float = 1e-8
+    ) -> bool:
+        """True when the reduced and closed-loop simulations reproduce the plan."""
+        return (
+            max(self.reduced.max_cp_error, self.closed_loop.max_cp_error) <= cp_tol
+            and max(self.reduced.final_state_error, self.closed_loop.final_state_error) <= state_tol
+            and self.passive_torque_residual <= residual_tol
+        )
+
+    def summary(self) -> dict:
+        """The figures written to ``solution.json`` plus one line per simulation."""
+        return {
+            "max_cp_error": self.max_cp_error,
+            "final_state_error": self.final_state_error,
+            "passive_torque_residual": self.passive_torque_residual,
+            "reduced": {
+                "max_cp_error": self.reduced.max_cp_error,
+                "final_state_error": self.reduced.final_state_error,
+            },
+            "open_loop": {
+                "max_cp_error": self.open_loop.max_cp_error,
+                "final_state_error": self.open_loop.final_state_error,
+            },
+        }
+
+
+def verify(plan: CPPlan, residual: float, poles=DEFAULT_POLES) -> Verification:
+    """Run the three simulations of a plan.
+
+    Parameters
+    ----------
+    plan : CPPlan
+        The plan.
+    residual : float
+        Largest passive-joint torque of the sampled plan [N m] (from the trajectory).
+    poles : sequence of float
+        Tracking poles [1/s].
+    """
+    return Verification(
+        reduced=simulate_reduced(plan),
+        closed_loop=simulate_closed_loop(plan, poles=poles),
+        open_loop=simulate_open_loop(plan),
+        passive_torque_residual=float(residual),
+    )

@@ -1,0 +1,180 @@
+"""A plan sampled into the arm's motion and torques, and its metrics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import flat
+from .dynamics import holding_torque, inverse_dynamics
+from .kinematics import inverse_derivatives, inverse_position
+from .plan import CPPlan
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Samples of a plan. At a phase join the time appears twice (left and right limits).
+
+    Attributes
+    ----------
+    t : (N,) times [s]
+    phase : (N,) index of the phase of each sample
+    cp : (N, 2, 5) CP and its derivatives 0..4 [m/s^k]
+    z : (N, 8) third-link state and compensator (x, y, theta, xdot, ydot, thetadot, xi, eta)
+    alpha : (N, 2) compensator inputs (alpha1 [m/s^4], alpha2 [m/s^2])
+    accel : (N, 3) (xddot, yddot, thetaddot) [m/s^2, rad/s^2]
+    q, qd, qdd : (N, 3) joint positions, velocities, accelerations (SI; rad for revolute)
+    tau : (N, 2) actuated joint torques/forces [N m or N]
+    residual : (N,) the passive joint's torque residual [N m] (zero for an exact plan)
+    gamma : (N,) the regularity quantity gamma [m/s^2]
+    """
+
+    t: np.ndarray
+    phase: np.ndarray
+    cp: np.ndarray
+    z: np.ndarray
+    alpha: np.ndarray
+    accel: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    residual: np.ndarray
+    gamma: np.ndarray
+
+
+def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
+    """Sample a plan into third-link states, joint motion and torques.
+
+    Parameters
+    ----------
+    plan : CPPlan
+        The plan.
+    per_phase : int
+        Samples per phase, both ends included.
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    cpopt.kinematics.ReachError
+        If a sample is out of the arm's reach.
+    """
+    arm = plan.arm
+    K, g0 = arm.K, arm.gravity
+    ts, phases, cps, zs = [], [], [], []
+    for i, ph in enumerate(plan.phases):
+        t = np.linspace(ph.curve.t0, ph.curve.t1, per_phase)
+        P = ph.curve.derivatives(t, 4)
+        ts.append(t)
+        phases.append(np.full(t.size, i))
+        cps.append(P)
+        zs.append(flat.inverse(P[:, :, :4], ph.sigma, K, g0))
+    t = np.concatenate(ts)
+    cp = np.concatenate(cps)
+    z = np.concatenate(zs)
+    z[:, 2] = np.unwrap(z[:, 2])
+    # Start the angle on the branch of the start node (theta and theta + 2 pi are one pose).
+    z[:, 2] += 2 * np.pi * np.round((plan.nodes[0].theta - z[0, 2]) / (2 * np.pi))
+    alpha, zdot, _ = flat.compensate(z, cp[:, :, 4], K, g0)
+    accel = zdot[:, 3:6]
+    q = inverse_position(arm, z[:, 0], z[:, 1], z[:, 2], t)
+    qd, qdd = inverse_derivatives(arm, q, z[:, 3:6], accel)
+    torques = inverse_dynamics(arm, q, qd, qdd)
+    return Trajectory(
+        t=t,
+        phase=np.concatenate(phases),
+        cp=cp,
+        z=z,
+        alpha=alpha,
+        accel=accel,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        tau=torques[:, :2],
+        residual=torques[:, 2],
+        gamma=flat.gamma(z, K, g0),
+    )
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """Figures of merit of a sampled plan (SI units).
+
+    Attributes
+    ----------
+    torque_sq_integral : integral of tau1^2 + tau2^2 dt [N^2 m^2 s]
+    abs_power_integral : integral of |tau1 q1dot| + |tau2 q2dot| dt [J]
+    peak_torque : (max |tau1|, max |tau2|) [N m or N]
+    min_abs_gamma : certified minimum of |gamma| over the plan [m/s^2]
+    min_abs_gamma_time : where it occurs [s]
+    theta_min_deg, theta_max_deg : range of the third link's angle [deg]
+    max_torque_jump : largest torque step at a phase join, or at a rest start/end against
+        the static holding torque of that rest state [N m or N]
+    max_passive_residual : largest |passive joint torque| along the samples [N m]
+    """
+
+    torque_sq_integral: float
+    abs_power_integral: float
+    peak_torque: tuple[float, float]
+    min_abs_gamma: float
+    min_abs_gamma_time: float
+    theta_min_deg: float
+    theta_max_deg: float
+    max_torque_jump: float
+    max_passive_residual: float
+
+    def as_dict(self) -> dict:
+        """The metrics as a plain dict (JSON-ready)."""
+        return {
+            "torque_sq_integral": self.torque_sq_integral,
+            "abs_power_integral": self.abs_power_integral,
+            "peak_torque": list(self.peak_torque),
+            "min_abs_gamma": self.min_abs_gamma,
+            "theta_min_deg": self.theta_min_deg,
+            "theta_max_deg": self.theta_max_deg,
+            "max_torque_jump": self.max_torque_jump,
+        }
+
+
+def torque_jumps(plan: CPPlan, traj: Trajectory) -> list[tuple[str, float, float]]:
+    """Torque steps (where, time [s], size [N m]) at joins and at rest ends.
+
+    At a phase join the step is ``max_i |tau_i(t+) - tau_i(t-)|``; at a start or goal at rest
+    it is the step from (to) the static torque that holds the arm in that state.
+    """
+    jumps = []
+    for k in range(1, len(plan.phases)):
+        left = np.flatnonzero(traj.phase == k - 1)[-1]
+        right = np.flatnonzero(traj.phase == k)[0]
+        jumps.append(
+            ("via", float(traj.t[left]), float(np.abs(traj.tau[right] - traj.tau[left]).max()))
+        )
+    for node, idx, name in ((plan.nodes[0], 0, "start"), (plan.nodes[-1], -1, "goal")):
+        if node.at_rest:
+            hold = holding_torque(plan.arm, traj.q[idx])
+            jumps.append((name, float(traj.t[idx]), float(np.abs(traj.tau[idx] - hold).max())))
+    return jumps
+
+
+def metrics(plan: CPPlan, traj: Trajectory) -> Metrics:
+    """Compute :class:`Metrics` of a sampled plan (trapezoidal integrals on the samples)."""
+    tau = traj.tau
+    power = np.abs(tau[:, 0] * traj.qd[:, 0]) + np.abs(tau[:, 1] * traj.qd[:, 1])
+    gmin, gmin_t = plan.min_abs_gamma()
+    jumps = torque_jumps(plan, traj)
+    theta_deg = np.degrees(traj.z[:, 2])
+    return Metrics(
+        torque_sq_integral=float(np.trapezoid((tau**2).sum(axis=1), traj.t)),
+        abs_power_integral=float(np.trapezoid(power, traj.t)),
+        peak_torque=(float(np.abs(tau[:, 0]).max()), float(np.abs(tau[:, 1]).max())),
+        min_abs_gamma=gmin,
+        min_abs_gamma_time=gmin_t,
+        theta_min_deg=float(theta_deg.min()),
+        theta_max_deg=float(theta_deg.max()),
+        max_torque_jump=max((j[2] for j in jumps), default=0.0),
+        max_passive_residual=float(np.abs(traj.residual).max()),
+    )
