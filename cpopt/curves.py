@@ -104,12 +104,25 @@ class PiecewisePolynomial:
             sq = polys[0] ** 2 + polys[1] ** 2
             cands = [0.0, 1.0]
             if deg >= 3:
-                roots = sq.deriv().roots()
-                cands += [r.real for r in roots if abs(r.imag) < 1e-9 and 0 < r.real < 1]
-            for lam in cands:
-                val = float(np.sqrt(max(sq(lam), 0.0)))
-                if val < best[0]:
-                    best = (val, float(self.breaks[k] + lam * h))
+                slope = sq.deriv()
+                curv = slope.deriv()
+                for r in slope.roots():
+                    if abs(r.imag) > 1e-4 or not -1e-6 < r.real < 1 + 1e-6:
+                        continue
+                    lam = r.real
+                    for _ in range(4):  # Newton polishing: companion-matrix roots lose digits
+                        c = curv(lam)
+                        if c == 0:
+                            break
+                        lam -= slope(lam) / c
+                    cands.append(min(max(lam, 0.0), 1.0))
+            # Evaluate the candidates on the curve itself: the squared polynomial loses digits.
+            times = self.breaks[k] + np.asarray(cands) * h
+            acc = self.derivatives(times, 2)[:, :, 2] + np.asarray(offset)
+            norms = np.hypot(acc[:, 0], acc[:, 1])
+            i = int(np.argmin(norms))
+            if norms[i] < best[0]:
+                best = (float(norms[i]), float(times[i]))
         return best
 
 

@@ -17,8 +17,10 @@ from . import flat
 from .curves import PiecewisePolynomial, hermite
 from .robot import Arm
 
-GAMMA_ZERO = 1e-6
-"""|gamma| below this [m/s^2] counts as singular."""
+GAMMA_ZERO = 1e-3
+"""|gamma| below this [m/s^2] counts as singular: there thetadot = (normal CP jerk) / gamma
+blows up and the angle is undetermined (1e-4 g0; round-off alone leaves ~1e-5 on a curve that
+touches zero exactly)."""
 
 
 class SingularPlanError(ValueError):

@@ -1,0 +1,39 @@
+"""Curves: Hermite segments and the exact |gamma| certificate."""
+
+import numpy as np
+import pytest
+
+from cpopt.curves import PiecewisePolynomial, hermite
+
+
+@pytest.mark.parametrize("n", [4, 5])
+def test_hermite_matches_end_derivatives(n):
+    rng = np.random.default_rng(n)
+    start, end = rng.normal(size=(2, n)), rng.normal(size=(2, n))
+    curve = hermite(0.2, 1.7, start, end)
+    assert curve.coeffs.shape == (1, 2 * n, 2)
+    np.testing.assert_allclose(curve.derivatives([0.2], n - 1)[0], start, atol=1e-12)
+    np.testing.assert_allclose(curve.derivatives([1.7], n - 1)[0], end, atol=1e-10)
+
+
+def test_derivatives_agree_with_finite_differences():
+    rng = np.random.default_rng(0)
+    curve = PiecewisePolynomial([0.0, 0.5, 1.3], rng.normal(size=(2, 8, 2)))
+    t = np.linspace(0.01, 0.49, 50)
+    d = curve.derivatives(t, 4)
+    h = 1e-5
+    for k in range(4):
+        fd = (curve.derivatives(t + h, 4)[:, :, k] - curve.derivatives(t - h, 4)[:, :, k]) / (2 * h)
+        np.testing.assert_allclose(fd, d[:, :, k + 1], rtol=1e-6, atol=1e-5)
+
+
+def test_min_gamma_certificate_is_exact():
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        curve = hermite(0.0, 1.0, rng.normal(size=(2, 4)) * 3, rng.normal(size=(2, 4)) * 3)
+        value, t = curve.min_norm_of_acceleration_plus((0.0, 9.81))
+        tt = np.linspace(0, 1, 200001)
+        acc = curve.derivatives(tt, 2)[:, :, 2]
+        dense = np.hypot(acc[:, 0], acc[:, 1] + 9.81)
+        assert value <= dense.min() + 1e-10
+        assert value == pytest.approx(dense.min(), abs=1e-6)

@@ -1,0 +1,92 @@
+"""Forward and inverse kinematics of the four arm kinds."""
+
+import numpy as np
+import pytest
+
+from cpopt.kinematics import (
+    ReachError,
+    forward_pose,
+    inverse_derivatives,
+    inverse_position,
+    kinematic_functions,
+)
+from cpopt.robot import Arm, Link
+
+ARMS = {
+    ("RRR", "elbow_up"): Arm("RRR", (Link(1.5, 2), Link(1.2, 1), Link(1, 0.5)), (0.1, -0.2),
+                             branch="elbow_up"),
+    ("RRR", "elbow_down"): Arm("RRR", (Link(1.5, 2), Link(1.2, 1), Link(1, 0.5)),
+                               branch="elbow_down"),
+    ("RPR", None): Arm("RPR", (Link(1.2, 2), Link(1.0, 1), Link(0.8, 0.5)), (0.3, 0.1)),
+    ("PRR", "forward"): Arm("PRR", (Link(0.5, 2), Link(1.0, 1), Link(0.6, 0.3)),
+                            branch="forward"),
+    ("PRR", "backward"): Arm("PRR", (Link(0.5, 2), Link(1.0, 1), Link(0.6, 0.3)),
+                             branch="backward"),
+    ("PPR", None): Arm("PPR", (Link(0.5, 2), Link(0.5, 1), Link(1, 1))),
+}
+
+
+def _poses(arm, n=40):
+    rng = np.random.default_rng(5)
+    b = np.array(arm.base)
+    if arm.kind == "RRR":
+        r = rng.uniform(0.5, 2.5, n)
+    elif arm.kind == "PRR":
+        r = rng.uniform(0.1, 0.9, n)
+    else:
+        r = rng.uniform(0.3, 1.5, n)
+    ang = rng.uniform(-np.pi, np.pi, n)
+    pts = b + np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+    return pts, rng.uniform(-3, 3, n)
+
+
+@pytest.mark.parametrize("key", list(ARMS), ids=lambda k: f"{k[0]}-{k[1]}")
+def test_inverse_then_forward_is_identity(key):
+    arm = ARMS[key]
+    pts, theta = _poses(arm)
+    for p, th in zip(pts, theta, strict=True):
+        q = inverse_position(arm, p[0], p[1], th)
+        np.testing.assert_allclose(forward_pose(arm, q[0]), [p[0], p[1], th], atol=1e-10)
+        if arm.kind == "RRR":
+            assert (np.sin(q[0, 1]) < 0) == (arm.branch == "elbow_up")
+        if arm.kind == "PRR":
+            assert (np.cos(q[0, 1]) > 0) == (arm.branch == "forward")
+
+
+@pytest.mark.parametrize("key", list(ARMS), ids=lambda k: f"{k[0]}-{k[1]}")
+def test_velocities_and_accelerations_match_finite_differences(key):
+    arm = ARMS[key]
+    t = np.linspace(0, 1, 2001)
+    p0, _ = _poses(arm, 1)
+    s = np.column_stack([p0[0, 0] + 0.1 * np.sin(2 * t), p0[0, 1] + 0.05 * np.cos(3 * t),
+                         0.3 + 2 * t**2])
+    sd = np.column_stack([0.2 * np.cos(2 * t), -0.15 * np.sin(3 * t), 4 * t])
+    sdd = np.column_stack([-0.4 * np.sin(2 * t), -0.45 * np.cos(3 * t), 4 + 0 * t])
+    q = inverse_position(arm, s[:, 0], s[:, 1], s[:, 2], t)
+    qd, qdd = inverse_derivatives(arm, q, sd, sdd)
+    h = t[1] - t[0]
+    np.testing.assert_allclose(np.gradient(q, h, axis=0)[5:-5], qd[5:-5], atol=1e-5)
+    np.testing.assert_allclose(np.gradient(qd, h, axis=0)[5:-5], qdd[5:-5], atol=1e-4)
+    assert np.abs(np.diff(q, axis=0)).max() < 0.05  # continuous along the motion (no wraps)
+
+
+def test_unreachable_point_names_time_and_point():
+    arm = ARMS[("RRR", "elbow_up")]
+    with pytest.raises(ReachError, match=r"t = 0\.5 s.*\(3\.2, 0\.1\)"):
+        inverse_position(arm, [1.0, 3.2], [0.1, 0.1], [0.0, 0.0], t=[0.0, 0.5])
+
+
+def test_prismatic_reach_errors():
+    with pytest.raises(ReachError, match="base"):
+        inverse_position(ARMS[("RPR", None)], 0.3, 0.1, 0.0)
+    with pytest.raises(ReachError, match="PRR"):
+        inverse_position(ARMS[("PRR", "forward")], 0.5, 1.5, 0.0)
+
+
+def test_chain_points_end_at_link_tip():
+    arm = ARMS[("RRR", "elbow_up")]
+    q = np.array([0.3, -0.8, 1.1])
+    pts = np.asarray(kinematic_functions(arm)["points"](q))
+    pose = forward_pose(arm, q)
+    np.testing.assert_allclose(pts[:, 2], pose[:2], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(pts[:, 3] - pts[:, 2]), 1.0, atol=1e-12)
