@@ -20,17 +20,22 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="cpopt", description=(
-        "Plan and optimize motions of three-link planar arms with a passive third joint under "
-        "gravity (De Luca & Oriolo's centre-of-percussion flat outputs)."))
+    parser = _Parser(
+        prog="cpopt",
+        description=(
+            "Plan and optimize motions of three-link planar arms with a passive third joint under "
+            "gravity (De Luca & Oriolo's centre-of-percussion flat outputs)."
+        ),
+    )
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"cpopt {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     solve = sub.add_parser("solve", help="solve problem files and write their results")
     solve.add_argument("files", nargs="+", metavar="FILE", help="YAML problem files")
-    solve.add_argument("--out", default="out", metavar="DIR",
-                       help="results go to DIR/<name>/ (default: out)")
+    solve.add_argument(
+        "--out", default="out", metavar="DIR", help="results go to DIR/<name>/ (default: out)"
+    )
     solve.add_argument("--plot", action="store_true", help="also write PNG figures")
     solve.add_argument("--animate", action="store_true", help="also write arm.gif")
     solve.add_argument("--verbose", action="store_true", help="show Ipopt's iterations")
@@ -57,8 +62,10 @@ def _cmd_check(files) -> int:
             print(f"error: {error}", file=sys.stderr)
             code = EXIT_BAD_INPUT
         else:
-            print(f"ok: {path} ({problem.name}: {problem.arm.kind} arm, "
-                  f"{len(problem.nodes) - 1} phase(s), planner {problem.planner})")
+            print(
+                f"ok: {path} ({problem.name}: {problem.arm.kind} arm, "
+                f"{len(problem.nodes) - 1} phase(s), planner {problem.planner})"
+            )
     return code
 
 
@@ -66,8 +73,10 @@ def _summary(solution, outdir: Path) -> str:
     line = f"{solution.name}: {solution.status:<9s} {solution.planner:<11s}"
     if solution.metrics is not None:
         m = solution.metrics
-        line += (f" T={solution.plan.duration:.3g} s  torque_sq_integral={m.torque_sq_integral:.6g}"
-                 f"  min|gamma|={m.min_abs_gamma:.4g}  max_torque_jump={m.max_torque_jump:.4g}")
+        line += (
+            f" T={solution.plan.duration:.3g} s  torque_sq_integral={m.torque_sq_integral:.6g}"
+            f"  min|gamma|={m.min_abs_gamma:.4g}  max_torque_jump={m.max_torque_jump:.4g}"
+        )
     if solution.verification is not None:
         line += f"  max_cp_error={solution.verification.max_cp_error:.2g} m"
     if solution.solver.iterations:

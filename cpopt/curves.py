@@ -1,11 +1,11 @@
 """CP curve families, evaluated with their derivatives 0..4.
 
-Every curve is held as a :class:`PiecewisePolynomial` in the plane: pieces on breakpoints, each a
-polynomial in the local normalised time ``lam = (t - t_k) / (t_{k+1} - t_k)`` with ascending
-coefficients. The closed-form seventh-degree Hermite segment (:func:`hermite`) is one piece; B-splines (see
-:mod:`cpopt.bspline`) convert to pieces. The exact minimum of ``|p'' + g0 e_y|`` (= |gamma|) over
-a curve is computed from the roots of a polynomial, which certifies the regularity margin
-between samples.
+Every curve is held as a :class:`PiecewisePolynomial` in the plane: pieces on breakpoints, each
+a polynomial in the local normalised time ``lam = (t - t_k) / (t_{k+1} - t_k)`` with ascending
+coefficients. The closed-form seventh-degree Hermite segment (:func:`hermite`) is one piece;
+B-splines (see :mod:`cpopt.bspline`) convert to pieces. The exact minimum of
+``|p'' + g0 e_y|`` (= |gamma|) over a curve comes from the roots of a polynomial, which
+certifies the regularity margin between samples.
 """
 
 from __future__ import annotations
@@ -94,7 +94,11 @@ class PiecewisePolynomial:
         t : float
             A time where it is attained [s].
         """
-        best = (np.inf, self.t0)
+        return min(self.piece_minima(offset))
+
+    def piece_minima(self, offset: tuple[float, float]) -> list[tuple[float, float]]:
+        """Exact minimum of ``|p''(t) + offset|`` on each piece, as (value [m/s^2], time [s])."""
+        out = []
         deg = self.coeffs.shape[1] - 1
         for k, h in enumerate(np.diff(self.breaks)):
             polys = []
@@ -121,9 +125,8 @@ class PiecewisePolynomial:
             acc = self.derivatives(times, 2)[:, :, 2] + np.asarray(offset)
             norms = np.hypot(acc[:, 0], acc[:, 1])
             i = int(np.argmin(norms))
-            if norms[i] < best[0]:
-                best = (float(norms[i]), float(times[i]))
-        return best
+            out.append((float(norms[i]), float(times[i])))
+        return out
 
 
 def hermite(t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> PiecewisePolynomial:

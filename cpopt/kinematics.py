@@ -229,3 +229,47 @@ def inverse_derivatives(
     bias = np.asarray(fns["jdot_qdot"].map(n)(q.T, qd.T)).T
     qdd = np.linalg.solve(J, (s_ddot - bias)[..., None])[..., 0]
     return qd, qdd
+
+
+def inverse_position_symbolic(arm: Arm, x, y, theta):
+    """Joint coordinates (3,) from the pose as CasADi expressions, on the arm's branch.
+
+    Angles come out of atan2 (wrapped); the dynamics depend on them only through sines and
+    cosines, so wrapping does not matter for torques. Valid inside the reach
+    (see :func:`reach_margin`).
+    """
+    px, py = x - arm.base[0], y - arm.base[1]
+    l1, l2 = arm.links[0].length, arm.links[1].length
+    if arm.kind == "RRR":
+        c2 = (px**2 + py**2 - l1**2 - l2**2) / (2 * l1 * l2)
+        s2 = ca.sqrt(1 - c2**2) * (-1.0 if arm.branch == "elbow_up" else 1.0)
+        q2 = ca.atan2(s2, c2)
+        q1 = ca.atan2(py, px) - ca.atan2(l2 * s2, l1 + l2 * c2)
+        return ca.vertcat(q1, q2, theta - q1 - q2)
+    if arm.kind == "RPR":
+        q1 = ca.atan2(py, px)
+        return ca.vertcat(q1, ca.sqrt(px**2 + py**2), theta - q1)
+    if arm.kind == "PRR":
+        s2 = py / l2
+        c2 = ca.sqrt(1 - s2**2) * (1.0 if arm.branch == "forward" else -1.0)
+        q2 = ca.atan2(s2, c2)
+        return ca.vertcat(px - l2 * c2, q2, theta - q2)
+    return ca.vertcat(px, py, theta)
+
+
+def reach_margin(arm: Arm, x, y):
+    """A CasADi expression that is >= 0 exactly where (x, y) is inside the branch's reach.
+
+    RRR: 1 - c2^2 (the elbow cosine); PRR: 1 - s2^2; RPR: distance from the base squared;
+    PPR: 1 (everywhere).
+    """
+    px, py = x - arm.base[0], y - arm.base[1]
+    l1, l2 = arm.links[0].length, arm.links[1].length
+    if arm.kind == "RRR":
+        c2 = (px**2 + py**2 - l1**2 - l2**2) / (2 * l1 * l2)
+        return 1 - c2**2
+    if arm.kind == "PRR":
+        return 1 - (py / l2) ** 2
+    if arm.kind == "RPR":
+        return px**2 + py**2
+    return ca.DM(1.0) + 0 * px

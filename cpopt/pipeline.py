@@ -43,18 +43,30 @@ def evaluate(
     try:
         traj = sample(plan, per_phase=samples)
     except ReachError as err:
-        return Solution(name, "unreachable", plan.planner, plan=plan, solver=solver,
-                        message=str(err))
+        return Solution(
+            name, "unreachable", plan.planner, plan=plan, solver=solver, message=str(err)
+        )
     measured = metrics(plan, traj)
     checked = verify(plan, measured.max_passive_residual, poles)
     if status == "solved" and not checked.passed():
         status = "verification_failed"
-        message = (f"simulation does not reproduce the plan: CP error "
-                   f"{checked.max_cp_error:.3g} m, final state error "
-                   f"{checked.final_state_error:.3g}, reduced-model CP error "
-                   f"{checked.reduced.max_cp_error:.3g} m")
-    return Solution(name, status, plan.planner, plan=plan, trajectory=traj, metrics=measured,
-                    verification=checked, solver=solver, message=message)
+        message = (
+            f"simulation does not reproduce the plan: CP error "
+            f"{checked.max_cp_error:.3g} m, final state error "
+            f"{checked.final_state_error:.3g}, reduced-model CP error "
+            f"{checked.reduced.max_cp_error:.3g} m"
+        )
+    return Solution(
+        name,
+        status,
+        plan.planner,
+        plan=plan,
+        trajectory=traj,
+        metrics=measured,
+        verification=checked,
+        solver=solver,
+        message=message,
+    )
 
 
 def solve(problem: Problem) -> Solution:
@@ -72,17 +84,34 @@ def solve(problem: Problem) -> Solution:
 
         result = optimize(problem)
         if result.plan is None:
-            return Solution(problem.name, result.status, "optimize", solver=result.solver,
-                            message=result.solver.message)
-        return evaluate(result.plan, problem.name, result.solver, result.status,
-                        verification.samples, verification.poles, result.solver.message)
+            return Solution(
+                problem.name,
+                result.status,
+                "optimize",
+                solver=result.solver,
+                message=result.solver.message,
+            )
+        return evaluate(
+            result.plan,
+            problem.name,
+            result.solver,
+            result.status,
+            verification.samples,
+            verification.poles,
+            result.solver.message,
+        )
     start = time.perf_counter()
     try:
         plan = closed_form(problem.arm, problem.nodes, spec.closed_form.smooth_torque)
     except SingularPlanError as err:
-        return Solution(problem.name, "singular", "closed_form", message=str(err),
-                        solver=SolverInfo(message=str(err)))
-    info = SolverInfo(build_time_s=0.0, solve_time_s=time.perf_counter() - start,
-                      message="closed form")
-    return evaluate(plan, problem.name, info, "solved", verification.samples,
-                    verification.poles)
+        return Solution(
+            problem.name,
+            "singular",
+            "closed_form",
+            message=str(err),
+            solver=SolverInfo(message=str(err)),
+        )
+    info = SolverInfo(
+        build_time_s=0.0, solve_time_s=time.perf_counter() - start, message="closed form"
+    )
+    return evaluate(plan, problem.name, info, "solved", verification.samples, verification.poles)

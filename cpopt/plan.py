@@ -8,6 +8,7 @@ and keeps the sign of gamma fixed.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -189,7 +190,9 @@ def check_regular(plan: CPPlan) -> None:
         )
 
 
-def closed_form(arm: Arm, nodes: Sequence[Node], smooth_torque: bool = False) -> CPPlan:
+def closed_form(
+    arm: Arm, nodes: Sequence[Node], smooth_torque: bool = False, check: bool = True
+) -> CPPlan:
     """The paper's closed-form plan: one Hermite polynomial per CP coordinate per phase.
 
     Parameters
@@ -203,6 +206,9 @@ def closed_form(arm: Arm, nodes: Sequence[Node], smooth_torque: bool = False) ->
         ninth-degree polynomials that also pin the fourth derivative at every node from the
         node's compensator inputs ``alpha`` (zero by default), so the torque is continuous at
         via states and equals the holding torque at rest ends with xi = eta = 0.
+    check : bool
+        Refuse a plan on which gamma vanishes (False only to get a warm start for an
+        optimizer, which must move the plan away from the singularity).
 
     Returns
     -------
@@ -221,13 +227,17 @@ def closed_form(arm: Arm, nodes: Sequence[Node], smooth_torque: bool = False) ->
         raise ValueError(f"node times must increase strictly, got {times.tolist()} s")
     K, g0 = arm.K, arm.gravity
     phases = []
-    for i, (a, b) in enumerate(zip(nodes[:-1], nodes[1:], strict=True)):
-        sigma = _phase_sign(
-            float(flat.gamma(a.state(after=True), K, g0)), float(flat.gamma(b.state(), K, g0)), i
+    for i, (a, b) in enumerate(itertools.pairwise(nodes)):
+        gam_a = float(flat.gamma(a.state(after=True), K, g0))
+        sigma = (
+            _phase_sign(gam_a, float(flat.gamma(b.state(), K, g0)), i)
+            if check
+            else (1 if gam_a >= 0 else -1)
         )
         start = node_boundary(arm, a, True, smooth_torque)
         end = node_boundary(arm, b, False, smooth_torque)
         phases.append(Phase(hermite(a.t, b.t, start, end), sigma))
     plan = CPPlan(arm=arm, nodes=nodes, phases=tuple(phases), planner="closed_form")
-    check_regular(plan)
+    if check:
+        check_regular(plan)
     return plan

@@ -37,8 +37,7 @@ def plot_third_link(solution: Solution, ax=None, strobes: int = 25):
     tips = _link3_tips(traj, arm.links[2].length)
     for k, a in enumerate(axes):
         for i in _strobe_indices(traj, k, strobes):
-            a.plot([traj.z[i, 0], tips[i, 0]], [traj.z[i, 1], tips[i, 1]], "-", color="0.35",
-                   lw=1)
+            a.plot([traj.z[i, 0], tips[i, 0]], [traj.z[i, 1], tips[i, 1]], "-", color="0.35", lw=1)
             a.plot(*traj.z[i, :2], "o", color="0.35", ms=2)
         sel = traj.phase == k
         a.plot(traj.cp[sel, 0, 0], traj.cp[sel, 1, 0], "r-", lw=1.5, label="CP path")
@@ -65,8 +64,10 @@ def plot_arm(solution: Solution, ax=None, strobes: int = 15):
         a.set_aspect("equal")
         a.set_xlabel("x [m]")
         a.set_ylabel("y [m]")
-        a.set_title(f"{solution.name}: {solution.plan.arm.kind} arm"
-                    + (f", phase {k + 1}" if phases > 1 else ""))
+        a.set_title(
+            f"{solution.name}: {solution.plan.arm.kind} arm"
+            + (f", phase {k + 1}" if phases > 1 else "")
+        )
     return fig
 
 
@@ -94,9 +95,12 @@ def plot_gamma(solution: Solution, ax=None, gamma_min: float | None = None):
     a.axhline(0, color="k", lw=0.8)
     m = solution.metrics
     if m is not None:
-        a.plot(m.min_abs_gamma_time, np.sign(np.interp(m.min_abs_gamma_time, traj.t,
-                                                       traj.gamma)) * m.min_abs_gamma,
-               "rv", label=f"min |gamma| = {m.min_abs_gamma:.3g}")
+        a.plot(
+            m.min_abs_gamma_time,
+            np.sign(np.interp(m.min_abs_gamma_time, traj.t, traj.gamma)) * m.min_abs_gamma,
+            "rv",
+            label=f"min |gamma| = {m.min_abs_gamma:.3g}",
+        )
     if gamma_min:
         for s in (-1, 1):
             a.axhline(s * gamma_min, color="r", ls=":", lw=0.8)
@@ -127,8 +131,12 @@ def write_figures(solution: Solution, directory: str | Path) -> list[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     written = []
-    for name, fn in (("third_link", plot_third_link), ("arm", plot_arm),
-                     ("torques", plot_torques), ("gamma", plot_gamma)):
+    for name, fn in (
+        ("third_link", plot_third_link),
+        ("arm", plot_arm),
+        ("torques", plot_torques),
+        ("gamma", plot_gamma),
+    ):
         fig = fn(solution)
         fig.tight_layout()
         path = directory / f"{name}.png"

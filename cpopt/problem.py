@@ -25,12 +25,12 @@ Number = Annotated[float, Field(allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
-def Pair(item):  # noqa: N802 - reads like a type
+def Pair(item):
     """A YAML list of exactly two items."""
     return Annotated[list[item], Field(min_length=2, max_length=2)]
 
 
-def Triple(item):  # noqa: N802
+def Triple(item):
     """A YAML list of exactly three items."""
     return Annotated[list[item], Field(min_length=3, max_length=3)]
 
@@ -132,9 +132,10 @@ class OptimizerSpec(_Spec):
     curve: Literal["bspline", "polynomial"] = "bspline"
     degree: Annotated[int, Field(ge=7, le=15)] = 8
     coefficients: Annotated[int, Field(ge=8, le=60)] = 14
-    objective: Literal["torque", "energy", "v_squared", "duration", "gamma_margin"] | dict[
-        str, Annotated[float, Field(ge=0, allow_inf_nan=False)]
-    ] = "torque"
+    objective: (
+        Literal["torque", "energy", "v_squared", "duration", "gamma_margin"]
+        | dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]
+    ) = "torque"
     gamma_min: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 2.0
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     smooth_torque: bool = True
@@ -159,8 +160,9 @@ class OptimizerSpec(_Spec):
 class VerificationSpec(_Spec):
     """Verification settings: tracking poles [1/s] and trajectory samples per phase."""
 
-    poles: Annotated[list[Annotated[float, Field(lt=0, allow_inf_nan=False)]],
-                     Field(min_length=4, max_length=4)] = [-10.0, -10.0, -10.0, -10.0]
+    poles: Annotated[
+        list[Annotated[float, Field(lt=0, allow_inf_nan=False)]], Field(min_length=4, max_length=4)
+    ] = [-10.0, -10.0, -10.0, -10.0]
     samples: Annotated[int, Field(ge=11, le=20001)] = 401
 
 
@@ -289,15 +291,19 @@ def free_value_names(spec: ProblemSpec) -> list[str]:
 def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...]]:
     a = spec.arm
     allowed = BRANCHES[a.kind]
-    if a.branch not in allowed and not (a.branch is None):
+    if a.branch not in allowed and a.branch is not None:
         choices = ", ".join(str(b) for b in allowed)
-        raise ProblemError(source, "arm.branch",
-                           f"a {a.kind} arm has branches {choices}, got {a.branch!r}")
+        raise ProblemError(
+            source, "arm.branch", f"a {a.kind} arm has branches {choices}, got {a.branch!r}"
+        )
     for i, link in enumerate(a.links):
         if i == 2 and link.com is not None and link.com <= 0:
-            raise ProblemError(source, "arm.links[2].com",
-                               f"the third link's centre of mass must lie beyond its joint "
-                               f"(> 0 m), got {link.com!r}")
+            raise ProblemError(
+                source,
+                "arm.links[2].com",
+                f"the third link's centre of mass must lie beyond its joint "
+                f"(> 0 m), got {link.com!r}",
+            )
     arm = Arm(
         kind=a.kind,
         links=tuple(Link(l.length, l.mass, l.com, l.inertia) for l in a.links),  # noqa: E741
@@ -310,17 +316,21 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
     prev = 0.0
     for i, via in enumerate(m.via):
         if not prev < via.t < T:
-            raise ProblemError(source, f"motion.via[{i}].t",
-                               f"via times must increase strictly inside (0, {T:g}) s, got "
-                               f"{via.t:g} s after {prev:g} s")
+            raise ProblemError(
+                source,
+                f"motion.via[{i}].t",
+                f"via times must increase strictly inside (0, {T:g}) s, got "
+                f"{via.t:g} s after {prev:g} s",
+            )
         prev = via.t
     nodes = (_node(m.start, 0.0), *(_node(v, v.t) for v in m.via), _node(m.goal, T))
     paths = ["motion.start", *(f"motion.via[{i}]" for i in range(len(m.via))), "motion.goal"]
     for node, path in zip(nodes, paths, strict=True):
         try:
             q = inverse_position(arm, node.x, node.y, node.theta)
-            inverse_derivatives(arm, q, np.array([[node.xdot, node.ydot, node.thetadot]]),
-                                np.zeros((1, 3)))
+            inverse_derivatives(
+                arm, q, np.array([[node.xdot, node.ydot, node.thetadot]]), np.zeros((1, 3))
+            )
         except ReachError as err:
             raise ProblemError(source, path, f"state not reachable: {err}") from None
     free = spec.optimizer.free if spec.planner == "optimize" else {}
@@ -329,13 +339,44 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
             hint = f"; did you mean '{close[0]}'?" if close else ""
-            raise ProblemError(source, f"optimizer.free.{name}",
-                               f"not a value of this problem{hint} (names: {', '.join(names)})")
+            raise ProblemError(
+                source,
+                f"optimizer.free.{name}",
+                f"not a value of this problem{hint} (names: {', '.join(names)})",
+            )
         if lo is not None and hi is not None and lo > hi:
-            raise ProblemError(source, f"optimizer.free.{name}",
-                               f"lower bound {lo:g} exceeds upper bound {hi:g}")
+            raise ProblemError(
+                source, f"optimizer.free.{name}", f"lower bound {lo:g} exceeds upper bound {hi:g}"
+            )
     _check_gamma(arm, nodes, paths, free, source)
+    if spec.planner == "optimize":
+        _check_optimizer(spec, len(nodes) - 1, source)
     return arm, nodes
+
+
+def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
+    o = spec.optimizer
+    count = o.coefficients if o.curve == "bspline" else o.degree + 1
+    ends = 5 if o.smooth_torque else 4
+    if count < 2 * ends or count < o.degree + 1:
+        key = "optimizer.coefficients" if o.curve == "bspline" else "optimizer.degree"
+        raise ProblemError(
+            source,
+            key,
+            f"{count} coefficients per phase cannot hold {ends} boundary "
+            f"conditions at each end (need >= {max(2 * ends, o.degree + 1)})",
+        )
+    if o.gamma_sign is not None and len(o.gamma_sign) != phases:
+        raise ProblemError(
+            source,
+            "optimizer.gamma_sign",
+            f"give one sign per phase ({phases}), got {len(o.gamma_sign)}",
+        )
+    weights = {o.objective: 1.0} if isinstance(o.objective, str) else o.objective
+    if weights.get("duration") and "duration" not in o.free:
+        raise ProblemError(
+            source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
+        )
 
 
 def _node_gamma_free(path: str, free: dict) -> bool:
@@ -350,16 +391,22 @@ def _check_gamma(arm, nodes, paths, free, source) -> None:
     fixed = [not _node_gamma_free(p, free) for p in paths]
     for g, is_fixed, path in zip(gam, fixed, paths, strict=True):
         if is_fixed and abs(g) < GAMMA_ZERO:
-            raise ProblemError(source, f"{path}.xi",
-                               f"gamma = xi - K thetadot^2 + g0 sin(theta) = {g:.3g} m/s^2 at "
-                               "this node: the flat map is singular there; choose xi so that "
-                               "gamma != 0")
+            raise ProblemError(
+                source,
+                f"{path}.xi",
+                f"gamma = xi - K thetadot^2 + g0 sin(theta) = {g:.3g} m/s^2 at "
+                "this node: the flat map is singular there; choose xi so that "
+                "gamma != 0",
+            )
     for i in range(len(nodes) - 1):
         if fixed[i] and fixed[i + 1] and gam[i] * gam[i + 1] < 0:
-            raise ProblemError(source, f"{paths[i + 1]}.xi",
-                               f"gamma changes sign in phase {i + 1} (gamma = {gam[i]:.3g} at its "
-                               f"start, {gam[i + 1]:.3g} m/s^2 at its end), so it vanishes in "
-                               "between; choose xi at the nodes so that gamma keeps one sign")
+            raise ProblemError(
+                source,
+                f"{paths[i + 1]}.xi",
+                f"gamma changes sign in phase {i + 1} (gamma = {gam[i]:.3g} at its "
+                f"start, {gam[i + 1]:.3g} m/s^2 at its end), so it vanishes in "
+                "between; choose xi at the nodes so that gamma keeps one sign",
+            )
 
 
 def parse_problem(data, source: str = "<python>", name: str | None = None) -> Problem:
@@ -390,8 +437,9 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
         path, message = _describe(errors[0])
         raise ProblemError(source, path, message) from None
     arm, nodes = _check_physics(spec, source)
-    return Problem(name=spec.name or name or "problem", source=source, arm=arm, nodes=nodes,
-                   spec=spec)
+    return Problem(
+        name=spec.name or name or "problem", source=source, arm=arm, nodes=nodes, spec=spec
+    )
 
 
 def load_problem(path: str | Path) -> Problem:

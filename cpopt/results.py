@@ -148,8 +148,16 @@ def atomic_write(path: Path, write) -> None:
 def trajectory_table(traj: Trajectory) -> np.ndarray:
     """The rows of ``trajectory.csv`` (N, 20) in :data:`CSV_COLUMNS` order."""
     return np.column_stack(
-        [traj.t, traj.z[:, :6], traj.q, traj.qd, traj.tau, traj.gamma, traj.cp[:, :, 0],
-         traj.z[:, 6:8]]
+        [
+            traj.t,
+            traj.z[:, :6],
+            traj.q,
+            traj.qd,
+            traj.tau,
+            traj.gamma,
+            traj.cp[:, :, 0],
+            traj.z[:, 6:8],
+        ]
     )
 
 

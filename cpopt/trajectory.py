@@ -115,6 +115,8 @@ class Metrics:
     max_torque_jump : largest torque step at a phase join, or at a rest start/end against
         the static holding torque of that rest state [N m or N]
     max_passive_residual : largest |passive joint torque| along the samples [N m]
+    torque_jumps : ((where, size), ...) each torque step: ``via[i]`` joins, ``start`` and
+        ``goal`` rest ends [N m or N]
     """
 
     torque_sq_integral: float
@@ -126,6 +128,7 @@ class Metrics:
     theta_max_deg: float
     max_torque_jump: float
     max_passive_residual: float
+    torque_jumps: tuple = ()
 
     def as_dict(self) -> dict:
         """The metrics as a plain dict (JSON-ready)."""
@@ -137,6 +140,7 @@ class Metrics:
             "theta_min_deg": self.theta_min_deg,
             "theta_max_deg": self.theta_max_deg,
             "max_torque_jump": self.max_torque_jump,
+            "torque_jumps": dict(self.torque_jumps),
         }
 
 
@@ -150,9 +154,8 @@ def torque_jumps(plan: CPPlan, traj: Trajectory) -> list[tuple[str, float, float
     for k in range(1, len(plan.phases)):
         left = np.flatnonzero(traj.phase == k - 1)[-1]
         right = np.flatnonzero(traj.phase == k)[0]
-        jumps.append(
-            ("via", float(traj.t[left]), float(np.abs(traj.tau[right] - traj.tau[left]).max()))
-        )
+        step = float(np.abs(traj.tau[right] - traj.tau[left]).max())
+        jumps.append((f"via[{k - 1}]", float(traj.t[left]), step))
     for node, idx, name in ((plan.nodes[0], 0, "start"), (plan.nodes[-1], -1, "goal")):
         if node.at_rest:
             hold = holding_torque(plan.arm, traj.q[idx])
@@ -177,4 +180,5 @@ def metrics(plan: CPPlan, traj: Trajectory) -> Metrics:
         theta_max_deg=float(theta_deg.max()),
         max_torque_jump=max((j[2] for j in jumps), default=0.0),
         max_passive_residual=float(np.abs(traj.residual).max()),
+        torque_jumps=tuple((where, size) for where, _, size in jumps),
     )

@@ -54,15 +54,32 @@ def test_solve_writes_the_output_contract(tmp_path, capsys):
     assert line.startswith("good: solved")
     out = tmp_path / "out" / "good"
     doc = json.loads((out / "solution.json").read_text())
-    assert set(doc) == {"name", "status", "planner", "duration_s", "metrics", "verification",
-                        "solver", "free_values", "cpopt_version"}
+    assert set(doc) == {
+        "name",
+        "status",
+        "planner",
+        "duration_s",
+        "metrics",
+        "verification",
+        "solver",
+        "free_values",
+        "cpopt_version",
+    }
     assert doc["status"] == "solved" and doc["planner"] == "closed_form"
     assert doc["duration_s"] == 1.0
-    assert set(doc["metrics"]) == {"torque_sq_integral", "abs_power_integral", "peak_torque",
-                                   "min_abs_gamma", "theta_min_deg", "theta_max_deg",
-                                   "max_torque_jump"}
+    assert {
+        "torque_sq_integral",
+        "abs_power_integral",
+        "peak_torque",
+        "min_abs_gamma",
+        "theta_min_deg",
+        "theta_max_deg",
+        "max_torque_jump",
+    } <= set(doc["metrics"])
+    assert set(doc["metrics"]["torque_jumps"]) == {"via[0]", "start", "goal"}
     assert {"max_cp_error", "final_state_error", "passive_torque_residual"} <= set(
-        doc["verification"])
+        doc["verification"]
+    )
     assert doc["verification"]["max_cp_error"] < 1e-8
     assert {"iterations", "build_time_s", "solve_time_s", "message"} <= set(doc["solver"])
     header = (out / "trajectory.csv").read_text().splitlines()[0]
@@ -78,9 +95,12 @@ def test_solve_writes_the_output_contract(tmp_path, capsys):
 
 def test_failed_solve_exit_1_writes_status_and_no_trajectory(tmp_path, capsys):
     # the paper's remark: a one-phase swing-up with x_s = x_g runs into gamma = 0
-    singular = GOOD.replace("""  via:
+    singular = GOOD.replace(
+        """  via:
     - {t: 0.5, x: 1.25, y: 1.0, theta_deg: 90, xi: 0.5}
-""", "").replace("x: 1.75, y: 1.0, theta_deg: 90}", "x: 0.75, y: 1.0, theta_deg: 90, xi: -20}")
+""",
+        "",
+    ).replace("x: 1.75, y: 1.0, theta_deg: 90}", "x: 0.75, y: 1.0, theta_deg: 90, xi: -20}")
     singular = singular.replace("theta_deg: 90}", "theta_deg: -90}", 1)
     path = _write(tmp_path, singular)
     out = tmp_path / "out"
@@ -101,41 +121,81 @@ def test_list_shows_bundled_problems(capsys):
 
 BAD = [
     # (case, edit of GOOD or full text, expected key path, expected words)
-    ("wrong type", GOOD.replace("duration: 1.0", "duration: fast"), "motion.duration",
-     "valid number"),
-    ("string number", GOOD.replace("mass: 5.0", "mass: '5.0'"), "arm.links[1].mass",
-     "valid number"),
-    ("unknown key", GOOD.replace("theta_deg: 90}", "theta_dg: 90}", 1), "motion.start.theta_dg",
-     "did you mean 'theta_deg'"),
+    (
+        "wrong type",
+        GOOD.replace("duration: 1.0", "duration: fast"),
+        "motion.duration",
+        "valid number",
+    ),
+    (
+        "string number",
+        GOOD.replace("mass: 5.0", "mass: '5.0'"),
+        "arm.links[1].mass",
+        "valid number",
+    ),
+    (
+        "unknown key",
+        GOOD.replace("theta_deg: 90}", "theta_dg: 90}", 1),
+        "motion.start.theta_dg",
+        "did you mean 'theta_deg'",
+    ),
     ("unknown top key", GOOD + "planer: closed_form\n", "planer", "did you mean 'planner'"),
     ("missing key", GOOD.replace("  duration: 1.0\n", ""), "motion.duration", "missing"),
-    ("negative mass", GOOD.replace("mass: 10.0", "mass: -10.0"), "arm.links[0].mass",
-     "greater than 0"),
-    ("zero length", GOOD.replace("length: 1.0", "length: 0"), "arm.links[2].length",
-     "greater than 0"),
-    ("two links", GOOD.replace("    - {length: 1.0, mass: 1.0}\n", ""), "arm.links",
-     "at least 3"),
+    (
+        "negative mass",
+        GOOD.replace("mass: 10.0", "mass: -10.0"),
+        "arm.links[0].mass",
+        "greater than 0",
+    ),
+    (
+        "zero length",
+        GOOD.replace("length: 1.0", "length: 0"),
+        "arm.links[2].length",
+        "greater than 0",
+    ),
+    ("two links", GOOD.replace("    - {length: 1.0, mass: 1.0}\n", ""), "arm.links", "at least 3"),
     ("bad kind", GOOD.replace("kind: RRR", "kind: RRP"), "arm.kind", "'RRR'"),
-    ("bad branch", GOOD.replace("kind: RRR", "kind: RRR\n  branch: left"), "arm.branch",
-     "elbow_up"),
+    (
+        "bad branch",
+        GOOD.replace("kind: RRR", "kind: RRR\n  branch: left"),
+        "arm.branch",
+        "elbow_up",
+    ),
     ("unreachable", GOOD.replace("x: 1.75", "x: 3.5"), "motion.goal", "not reachable"),
-    ("unreachable via", GOOD.replace("x: 1.25, y: 1.0", "x: 0.0, y: 0.0"), "motion.via[0]",
-     "not reachable"),
-    ("gamma zero", GOOD.replace("theta_deg: 90}", "theta_deg: 0}", 1), "motion.start.xi",
-     "gamma"),
-    ("gamma sign change", GOOD.replace("xi: 0.5}", "xi: -20}"), "motion.via[0].xi",
-     "changes sign"),
+    (
+        "unreachable via",
+        GOOD.replace("x: 1.25, y: 1.0", "x: 0.0, y: 0.0"),
+        "motion.via[0]",
+        "not reachable",
+    ),
+    ("gamma zero", GOOD.replace("theta_deg: 90}", "theta_deg: 0}", 1), "motion.start.xi", "gamma"),
+    ("gamma sign change", GOOD.replace("xi: 0.5}", "xi: -20}"), "motion.via[0].xi", "changes sign"),
     ("via time outside", GOOD.replace("t: 0.5", "t: 1.5"), "motion.via[0].t", "(0, 1)"),
     ("via time zero", GOOD.replace("t: 0.5", "t: 0.0"), "motion.via[0].t", "inside"),
-    ("nan", GOOD.replace("y: 1.0, theta_deg: 90}", "y: .nan, theta_deg: 90}", 1),
-     "motion.start.y", "finite"),
-    ("boolean number", GOOD.replace("duration: 1.0", "duration: true"), "motion.duration",
-     "valid number"),
-    ("list not mapping", GOOD.replace("start: {x: 0.75, y: 1.0, theta_deg: 90}",
-                                      "start: [0.75, 1.0, 90]"), "motion.start",
-     "dictionary"),
-    ("bad poles", GOOD + "verification: {poles: [-1, -2, 3, -4]}\n", "verification.poles[2]",
-     "less than 0"),
+    (
+        "nan",
+        GOOD.replace("y: 1.0, theta_deg: 90}", "y: .nan, theta_deg: 90}", 1),
+        "motion.start.y",
+        "finite",
+    ),
+    (
+        "boolean number",
+        GOOD.replace("duration: 1.0", "duration: true"),
+        "motion.duration",
+        "valid number",
+    ),
+    (
+        "list not mapping",
+        GOOD.replace("start: {x: 0.75, y: 1.0, theta_deg: 90}", "start: [0.75, 1.0, 90]"),
+        "motion.start",
+        "dictionary",
+    ),
+    (
+        "bad poles",
+        GOOD + "verification: {poles: [-1, -2, 3, -4]}\n",
+        "verification.poles[2]",
+        "less than 0",
+    ),
     ("bad planner", GOOD + "planner: magic\n", "planner", "closed_form"),
     ("malformed yaml", GOOD.replace("kind: RRR", "kind: [RRR"), "", "malformed YAML at line"),
     ("empty file", "", "", "empty document"),
@@ -147,8 +207,11 @@ BAD = [
 def test_bad_input_exit_2_with_key_path(tmp_path, capsys, case, text, key, words):
     path = _write(tmp_path, text)
     for verb in ("check", "solve"):
-        code = main([verb, str(path), "--out", str(tmp_path / "o")] if verb == "solve"
-                    else [verb, str(path)])
+        code = main(
+            [verb, str(path), "--out", str(tmp_path / "o")]
+            if verb == "solve"
+            else [verb, str(path)]
+        )
         err = capsys.readouterr().err
         assert code == 2, err
         assert f"{path}: {key}:" in err if key else f"{path}:" in err
@@ -166,10 +229,15 @@ def test_directory_and_missing_file(tmp_path, capsys):
 
 def test_real_command_line_prints_no_traceback(tmp_path):
     path = _write(tmp_path, GOOD.replace("mass: 10.0", "mass: -1"))
-    run = subprocess.run([sys.executable, "-m", "cpopt.cli", "check", str(path)],
-                         capture_output=True, text=True, cwd=ROOT)
+    run = subprocess.run(
+        [sys.executable, "-m", "cpopt.cli", "check", str(path)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     assert run.returncode == 2
     assert "arm.links[0].mass" in run.stderr and "Traceback" not in run.stderr
-    run = subprocess.run([sys.executable, "-m", "cpopt.cli", "frobnicate"], capture_output=True,
-                         text=True, cwd=ROOT)
+    run = subprocess.run(
+        [sys.executable, "-m", "cpopt.cli", "frobnicate"], capture_output=True, text=True, cwd=ROOT
+    )
     assert run.returncode == 2 and "Traceback" not in run.stderr

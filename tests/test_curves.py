@@ -31,7 +31,7 @@ def test_min_gamma_certificate_is_exact():
     rng = np.random.default_rng(2)
     for _ in range(20):
         curve = hermite(0.0, 1.0, rng.normal(size=(2, 4)) * 3, rng.normal(size=(2, 4)) * 3)
-        value, t = curve.min_norm_of_acceleration_plus((0.0, 9.81))
+        value, _t = curve.min_norm_of_acceleration_plus((0.0, 9.81))
         tt = np.linspace(0, 1, 200001)
         acc = curve.derivatives(tt, 2)[:, :, 2]
         dense = np.hypot(acc[:, 0], acc[:, 1] + 9.81)

@@ -33,8 +33,7 @@ def test_unforced_motion_conserves_energy(arm):
     def rhs(t, x):
         return np.concatenate([x[3:], np.asarray(fns["forward"](x[:3], x[3:], [0, 0])).ravel()])
 
-    sol = solve_ivp(rhs, (0, 1.0), np.concatenate([Q, QD]), rtol=1e-11, atol=1e-11,
-                    method="DOP853")
+    sol = solve_ivp(rhs, (0, 1.0), np.concatenate([Q, QD]), rtol=1e-11, atol=1e-11, method="DOP853")
     energy = [float(sum(fns["energy"](x[:3], x[3:]))) for x in sol.y.T]
     assert np.ptp(energy) < 1e-7 * max(1.0, abs(energy[0]))
 

@@ -29,8 +29,10 @@ def test_round_trip_state_to_cp_and_back(z):
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.tuples(*([st.floats(-2.0, 2.0)] * 8)).map(lambda a: np.array(a).reshape(2, 4)),
-       st.sampled_from([-1.0, 1.0]))
+@given(
+    st.tuples(*([st.floats(-2.0, 2.0)] * 8)).map(lambda a: np.array(a).reshape(2, 4)),
+    st.sampled_from([-1.0, 1.0]),
+)
 def test_round_trip_cp_to_state_and_back(P, sigma):
     if np.hypot(P[0, 2], P[1, 2] + G0) < 0.05:
         return
@@ -54,14 +56,15 @@ def test_relative_degree_four_and_compensator_gives_v(z, alpha, v):
 @settings(max_examples=100, deadline=None)
 @given(state, st.tuples(finite, finite).map(np.array))
 def test_paper_equations_10_to_12_and_corrected_7(z, v):
-    x, y, th, xd, yd, thd, xi, eta = z
+    _x, _y, th, xd, yd, thd, xi, eta = z
     c, s = np.cos(th), np.sin(th)
     gam = xi - K * thd**2 + G0 * s
     P = flat.output(z, K, G0)
     np.testing.assert_allclose(P[:, 1], [xd - K * thd * s, yd + K * thd * c], atol=1e-12)  # (10)
     np.testing.assert_allclose(P[:, 2], _rot(th) @ [xi - K * thd**2, -G0 * c], atol=1e-12)  # (11)
-    np.testing.assert_allclose(P[:, 3], _rot(th) @ [eta + 3 * G0 * c * thd, thd * gam],
-                               atol=1e-11)  # (12)
+    np.testing.assert_allclose(
+        P[:, 3], _rot(th) @ [eta + 3 * G0 * c * thd, thd * gam], atol=1e-11
+    )  # (12)
     if abs(gam) < 0.05:
         return
     # (7) with the sign the extracted text lost: M22 = -K / gamma
@@ -100,8 +103,10 @@ def test_horizontal_via_jerk_erratum():
     """At theta_m = 0 the CP jerk is y2''' = thetadot_m (xi_m - K thetadot_m^2) (text drops it)."""
     xm, ym, xdm, ydm, thdm, xim, etam = 0.75, 1.0, 0.2, -0.1, 1.3, -10.0, 0.5
     P = flat.output([xm, ym, 0.0, xdm, ydm, thdm, xim, etam], K, G0)
-    expected = [[xm + K, xdm, xim - K * thdm**2, etam + 3 * G0 * thdm],
-                [ym, ydm + K * thdm, -G0, thdm * (xim - K * thdm**2)]]
+    expected = [
+        [xm + K, xdm, xim - K * thdm**2, etam + 3 * G0 * thdm],
+        [ym, ydm + K * thdm, -G0, thdm * (xim - K * thdm**2)],
+    ]
     np.testing.assert_allclose(P, expected, atol=1e-12)
     assert abs(P[1, 3] - (xim - K * thdm**2)) > 1.0  # the printed value is wrong unless thdm = 1
 
@@ -110,5 +115,6 @@ def test_gamma_is_norm_of_cp_acceleration_plus_gravity():
     rng = np.random.default_rng(3)
     z = rng.normal(size=(50, 8))
     P = flat.output(z, K, G0)
-    np.testing.assert_allclose(np.abs(flat.gamma(z, K, G0)),
-                               np.hypot(P[:, 0, 2], P[:, 1, 2] + G0), rtol=1e-12)
+    np.testing.assert_allclose(
+        np.abs(flat.gamma(z, K, G0)), np.hypot(P[:, 0, 2], P[:, 1, 2] + G0), rtol=1e-12
+    )

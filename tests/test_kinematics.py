@@ -13,15 +13,17 @@ from cpopt.kinematics import (
 from cpopt.robot import Arm, Link
 
 ARMS = {
-    ("RRR", "elbow_up"): Arm("RRR", (Link(1.5, 2), Link(1.2, 1), Link(1, 0.5)), (0.1, -0.2),
-                             branch="elbow_up"),
-    ("RRR", "elbow_down"): Arm("RRR", (Link(1.5, 2), Link(1.2, 1), Link(1, 0.5)),
-                               branch="elbow_down"),
+    ("RRR", "elbow_up"): Arm(
+        "RRR", (Link(1.5, 2), Link(1.2, 1), Link(1, 0.5)), (0.1, -0.2), branch="elbow_up"
+    ),
+    ("RRR", "elbow_down"): Arm(
+        "RRR", (Link(1.5, 2), Link(1.2, 1), Link(1, 0.5)), branch="elbow_down"
+    ),
     ("RPR", None): Arm("RPR", (Link(1.2, 2), Link(1.0, 1), Link(0.8, 0.5)), (0.3, 0.1)),
-    ("PRR", "forward"): Arm("PRR", (Link(0.5, 2), Link(1.0, 1), Link(0.6, 0.3)),
-                            branch="forward"),
-    ("PRR", "backward"): Arm("PRR", (Link(0.5, 2), Link(1.0, 1), Link(0.6, 0.3)),
-                             branch="backward"),
+    ("PRR", "forward"): Arm("PRR", (Link(0.5, 2), Link(1.0, 1), Link(0.6, 0.3)), branch="forward"),
+    ("PRR", "backward"): Arm(
+        "PRR", (Link(0.5, 2), Link(1.0, 1), Link(0.6, 0.3)), branch="backward"
+    ),
     ("PPR", None): Arm("PPR", (Link(0.5, 2), Link(0.5, 1), Link(1, 1))),
 }
 
@@ -58,8 +60,9 @@ def test_velocities_and_accelerations_match_finite_differences(key):
     arm = ARMS[key]
     t = np.linspace(0, 1, 2001)
     p0, _ = _poses(arm, 1)
-    s = np.column_stack([p0[0, 0] + 0.1 * np.sin(2 * t), p0[0, 1] + 0.05 * np.cos(3 * t),
-                         0.3 + 2 * t**2])
+    s = np.column_stack(
+        [p0[0, 0] + 0.1 * np.sin(2 * t), p0[0, 1] + 0.05 * np.cos(3 * t), 0.3 + 2 * t**2]
+    )
     sd = np.column_stack([0.2 * np.cos(2 * t), -0.15 * np.sin(3 * t), 4 * t])
     sdd = np.column_stack([-0.4 * np.sin(2 * t), -0.45 * np.cos(3 * t), 4 + 0 * t])
     q = inverse_position(arm, s[:, 0], s[:, 1], s[:, 2], t)

@@ -42,7 +42,7 @@ def test_transfer_keeps_cp_height_constant(paper_solutions):
 
 def test_slow_transfer_stays_near_vertical(paper_solutions):
     m = paper_solutions["paper_transfer_slow"].metrics
-    assert 88.0 < m.theta_min_deg and m.theta_max_deg < 92.0  # within 2 deg of vertical
+    assert m.theta_min_deg > 88.0 and m.theta_max_deg < 92.0  # within 2 deg of vertical
     fast = paper_solutions["paper_transfer"].metrics
     assert fast.theta_max_deg - fast.theta_min_deg > 70  # the T = 1 s transfer tilts a lot
     assert m.torque_sq_integral < 0.25 * fast.torque_sq_integral
@@ -64,7 +64,9 @@ def test_gamma_keeps_one_sign(paper_solutions):
         g = sol.trajectory.gamma
         assert np.all(g < 0) or np.all(g > 0)
         assert sol.metrics.min_abs_gamma > 1.0
-    assert paper_solutions["paper_swing_up"].metrics.min_abs_gamma == pytest.approx(6.9561, abs=1e-3)
+    assert paper_solutions["paper_swing_up"].metrics.min_abs_gamma == pytest.approx(
+        6.9561, abs=1e-3
+    )
 
 
 def test_swing_up_torque_jumps_at_tm(paper_solutions):
@@ -79,13 +81,16 @@ def test_swing_up_torque_jumps_at_tm(paper_solutions):
 def test_smooth_torque_removes_jumps():
     arm = paper_arm((1, 1, 0.5))
     d = np.radians
-    nodes = [Node(0, 0.75, 1, d(-90)), Node(1, 0.75, 1, 0, xi=-10), Node(1.6, 0.75, 1, d(90),
-                                                                              xi=-20)]
+    nodes = [
+        Node(0, 0.75, 1, d(-90)),
+        Node(1, 0.75, 1, 0, xi=-10),
+        Node(1.6, 0.75, 1, d(90), xi=-20),
+    ]
     plan = closed_form(arm, nodes, smooth_torque=True)
     traj = sample(plan)
     named = {w: size for w, _, size in torque_jumps(plan, traj)}
     # the join is smooth; the rest start (xi = eta = 0) starts from the holding torque
-    assert named["via"] < 1e-8 and named["start"] < 1e-8
+    assert named["via[0]"] < 1e-8 and named["start"] < 1e-8
     # the goal keeps the paper's xi_g = -20 m/s^2: the base still accelerates there, so the
     # step to the holding torque remains (an optimizer that frees xi_g removes it)
     assert named["goal"] == pytest.approx(23.5173, abs=1e-3)
@@ -95,8 +100,11 @@ def test_smooth_torque_removes_jumps():
 def test_eta_reset_at_via_state_is_verified():
     arm = paper_arm((1, 1, 0.5))
     d = np.radians
-    nodes = [Node(0, 0.75, 1, d(-90)), Node(1, 0.75, 1, 0, xi=-10, eta=0.0, eta_after=-15.0),
-             Node(1.6, 0.75, 1, d(90), xi=-20)]
+    nodes = [
+        Node(0, 0.75, 1, d(-90)),
+        Node(1, 0.75, 1, 0, xi=-10, eta=0.0, eta_after=-15.0),
+        Node(1.6, 0.75, 1, d(90), xi=-20),
+    ]
     plan = closed_form(arm, nodes)
     from cpopt.pipeline import evaluate
     from cpopt.results import SolverInfo

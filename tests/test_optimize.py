@@ -1,0 +1,164 @@
+"""The flat optimizer: regression on optimal costs, claims against the paper, honest failures.
+
+The stored table ``tests/optimal_costs.json`` is refreshed deliberately with
+``python tests/refresh_optimal_costs.py``.
+"""
+
+import json
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpopt.cli import main
+from cpopt.optimize import optimize
+from cpopt.pipeline import solve
+from cpopt.problem import load_problem, parse_problem
+from cpopt.trajectory import sample
+
+HERE = Path(__file__).resolve().parent
+PROBLEMS = HERE.parent / "problems"
+TABLE = json.loads((HERE / "optimal_costs.json").read_text())
+REL_TOL = 2e-3  # Ipopt's tol is 1e-8; the table moves only when the optimum does
+
+
+@pytest.fixture(scope="module")
+def optimized():
+    return {name: solve(load_problem(PROBLEMS / f"{name}.yaml")) for name in TABLE}
+
+
+@pytest.mark.parametrize("name", list(TABLE))
+def test_optimal_costs_match_the_stored_table(optimized, name):
+    sol = optimized[name]
+    assert sol.status == "solved", sol.message
+    from refresh_optimal_costs import measure
+
+    now = measure(sol)
+    for key, stored in TABLE[name].items():
+        assert now[key] == pytest.approx(stored, rel=REL_TOL), (
+            f"{name}.{key}: stored {stored:.10g}, now {now[key]:.10g} "
+            "(refresh deliberately with `python tests/refresh_optimal_costs.py`)"
+        )
+
+
+@pytest.mark.parametrize("name", list(TABLE))
+def test_optimized_plans_are_verified_and_certified(optimized, name):
+    sol = optimized[name]
+    v = sol.verification
+    assert v.closed_loop.max_cp_error < 1e-8
+    assert v.closed_loop.final_state_error < 1e-7
+    assert v.open_loop.final_state_error < 1e-6  # exact torques replayed without feedback
+    assert v.passive_torque_residual < 1e-9
+    # certified between samples, exactly, and above gamma_min = 2 m/s^2
+    assert sol.solver.extra["certified_min_abs_gamma"] >= 2.0 * (1 - 1e-6)
+    assert sol.metrics.min_abs_gamma >= 2.0 * (1 - 1e-6)
+    assert "exact minimum" in sol.solver.extra["certification"]
+    # the sampled objective is close to the same integral on the fine grid
+    if "torque" in sol.solver.extra["cost_terms"] and len(sol.solver.extra["cost_terms"]) == 1:
+        assert sol.solver.extra["objective"] == pytest.approx(
+            sol.metrics.torque_sq_integral, rel=0.02
+        )
+
+
+def test_optimized_swing_up_beats_the_paper(optimized, paper_solutions):
+    paper = paper_solutions["paper_swing_up"].metrics
+    best = optimized["swing_up_min_torque"].metrics
+    assert best.torque_sq_integral < 0.3 * paper.torque_sq_integral  # 3429 vs 12953
+    assert max(best.peak_torque) < 0.5 * max(paper.peak_torque)
+
+
+def test_optimized_transfer_beats_the_paper(optimized, paper_solutions):
+    paper = paper_solutions["paper_transfer"].metrics
+    best = optimized["transfer_min_torque"].metrics
+    assert best.torque_sq_integral < 0.8 * paper.torque_sq_integral
+
+
+def test_smooth_torque_removes_jumps_where_the_method_allows(optimized):
+    jumps = dict(optimized["swing_up_min_torque"].metrics.torque_jumps)
+    assert jumps["via[0]"] < 1e-6 and jumps["start"] < 1e-6
+    # the inverted goal cannot be held: gamma < 0 there forces xi <= -(g0 + gamma_min), i.e. a
+    # base still accelerating downwards at T (the sign of gamma cannot change in a swing-up)
+    assert optimized["swing_up_min_torque"].plan.free_values["goal.xi"] <= -11.81 + 1e-6
+    transfer = dict(optimized["transfer_min_torque"].metrics.torque_jumps)
+    assert transfer["start"] < 1e-6 and transfer["goal"] < 1e-6
+
+
+@pytest.mark.parametrize("name", ["swing_up_torque_limited", "swing_up_min_time"])
+def test_torque_limits_hold_on_a_fine_grid(optimized, name):
+    sol = optimized[name]
+    tau = sample(sol.plan, per_phase=2001).tau
+    assert np.abs(tau[:, 0]).max() <= 120 * (1 + 1e-4)
+    assert np.abs(tau[:, 1]).max() <= 50 * (1 + 1e-4)
+
+
+def test_minimum_time_is_shorter_than_the_paper(optimized):
+    sol = optimized["swing_up_min_time"]
+    assert sol.plan.duration < 1.2  # the paper took 1.6 s with larger torques
+    assert sol.plan.free_values["via[0].t"] < sol.plan.duration
+
+
+def test_both_signs_tried_and_reported(optimized):
+    choices = optimized["swing_up_torque_limited"].solver.extra["sign_choices"]
+    assert {c["sign"] for c in choices} == {"positive", "negative"}
+    assert optimized["swing_up_torque_limited"].solver.extra["gamma_sign"] == "negative"
+
+
+INFEASIBLE = textwrap.dedent("""\
+    name: too_weak
+    arm:
+      kind: RRR
+      links:
+        - {length: 1.5, mass: 1.0}
+        - {length: 1.5, mass: 1.0}
+        - {length: 1.0, mass: 0.5}
+    motion:
+      duration: 1.6
+      start: {x: 0.75, y: 1.0, theta_deg: -90}
+      via:
+        - {t: 1.0, x: 0.75, y: 1.0, theta_deg: 0, xi: -10}
+      goal: {x: 0.75, y: 1.0, theta_deg: 90, xi: -20}
+    planner: optimize
+    optimizer:
+      gamma_sign: [negative, negative]
+      samples: 21
+      limits: {torque: [5, 5]}
+      free:
+        via[0].xi: [-40, 40]
+        goal.xi: [-40, 40]
+      solver: {max_iter: 60}
+    """)
+
+
+def test_failed_solve_reports_status_best_iterate_and_violations(tmp_path, capsys):
+    path = tmp_path / "too_weak.yaml"
+    path.write_text(INFEASIBLE)
+    result = optimize(load_problem(path))
+    assert result.status in ("infeasible", "max_iterations", "not_converged")
+    assert result.plan is not None  # the best iterate
+    assert result.violations and "|tau" in " ".join(result.violations)
+    assert " at t = " in result.violations[0]
+    assert main(["solve", str(path), "--out", str(tmp_path / "out")]) == 1
+    doc = json.loads((tmp_path / "out" / "too_weak" / "solution.json").read_text())
+    assert doc["status"] == result.status
+    assert "violated" in doc["solver"]["message"]
+    assert not (tmp_path / "out" / "too_weak" / "trajectory.csv").exists()
+
+
+def test_solver_is_reused_for_the_same_structure(optimized):
+    data = load_problem(PROBLEMS / "transfer_min_torque.yaml").spec.model_dump()
+    data["motion"]["goal"]["x"] = 1.6  # other fixed values, same structure
+    again = optimize(parse_problem(data))
+    assert again.status == "solved"
+    assert again.solver.build_time_s < 0.05  # no rebuild: fixed values are parameters
+
+
+def test_optimizer_settings_are_validated(tmp_path):
+    bad = INFEASIBLE.replace("gamma_sign: [negative, negative]", "gamma_sign: [negative]")
+    path = tmp_path / "bad.yaml"
+    path.write_text(bad)
+    assert main(["check", str(path)]) == 2
+    path.write_text(INFEASIBLE.replace("goal.xi: [-40, 40]", "goal.xii: [-40, 40]"))
+    assert main(["check", str(path)]) == 2
+    path.write_text(INFEASIBLE.replace("samples: 21", "objective: duration"))
+    assert main(["check", str(path)]) == 2
