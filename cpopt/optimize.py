@@ -153,7 +153,6 @@ def _settings_key(problem: Problem):
         o.gamma_min,
         o.smooth_torque,
         o.samples,
-        o.energy_smoothing,
         lim.model_dump_json(),
         o.solver.jit,
     )
@@ -359,9 +358,27 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
         if "torque" in cost_terms:
             cost_terms["torque"] += h * ca.dot(w, ca.sum1(tau[:, :mm] ** 2).T)
         if "energy" in cost_terms:
-            eps = o.energy_smoothing
+            # |tau_i q_i'| through its epigraph: slack >= +-power, exact and smooth for Ipopt
             power = tau[:, :mm] * qd[:2, :mm]
-            cost_terms["energy"] += h * ca.dot(w, ca.sum1(ca.sqrt(power**2 + eps**2) - eps).T)
+            slack = ca.MX.sym(f"e{k}", 2, mm)
+            tau0, _, qd0, _ = sample_fn.map(len(s), "serial")(P_all, sign)
+            lifted_parts.append(ca.vec(slack))
+            lifted_values.append(ca.vec(ca.fabs(tau0[:, :mm] * qd0[:2, :mm])))
+            add(
+                ca.vec(slack - power),
+                0,
+                ca.inf,
+                f"energy slack (phase {k + 1})",
+                [(k, float(sj)) for sj in s[:mm] for _ in range(2)],
+            )
+            add(
+                ca.vec(slack + power),
+                0,
+                ca.inf,
+                f"energy slack (phase {k + 1})",
+                [(k, float(sj)) for sj in s[:mm] for _ in range(2)],
+            )
+            cost_terms["energy"] += h * ca.dot(w, ca.sum1(slack).T)
         if "v_squared" in cost_terms:
             cost_terms["v_squared"] += h * ca.dot(w, ca.sum2(D[4][:mm, :] ** 2))
         # the sign of gamma at the phase's nodes, where it is free

@@ -140,7 +140,6 @@ class OptimizerSpec(_Spec):
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     smooth_torque: bool = True
     samples: Annotated[int, Field(ge=10, le=1000)] = 40
-    energy_smoothing: Positive = 0.05
     limits: LimitsSpec = LimitsSpec()
     free: dict[str, Pair(Number | None)] = {}
     solver: SolverSpec = SolverSpec()

@@ -294,10 +294,17 @@ class Verification:
     def passed(
         self, cp_tol: float = 1e-6, state_tol: float = 1e-5, residual_tol: float = 1e-8
     ) -> bool:
-        """True when the reduced and closed-loop simulations reproduce the plan."""
+        """True when the simulations reproduce the plan.
+
+        The full arm in closed loop must meet ``cp_tol`` [m] and ``state_tol``; the reduced
+        model, driven open loop through four unstable integrators per output, gets ten and a
+        hundred times more (its integration error grows like t^4).
+        """
         return (
-            max(self.reduced.max_cp_error, self.closed_loop.max_cp_error) <= cp_tol
-            and max(self.reduced.final_state_error, self.closed_loop.final_state_error) <= state_tol
+            self.closed_loop.max_cp_error <= cp_tol
+            and self.closed_loop.final_state_error <= state_tol
+            and self.reduced.max_cp_error <= 10 * cp_tol
+            and self.reduced.final_state_error <= 100 * state_tol
             and self.passive_torque_residual <= residual_tol
         )
 

@@ -18,6 +18,8 @@ OPTIMIZED = (
     "swing_up_min_torque",
     "swing_up_torque_limited",
     "swing_up_min_time",
+    "swing_up_free_via",
+    "swing_up_one_phase",
 )
 
 
