@@ -441,20 +441,14 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
     return built
 
 
-def _initial_plan(problem: Problem, values: dict, sign: int) -> CPPlan:
-    """Closed-form warm start; for nodes whose guesses give gamma the other sign, xi is moved
-    to the sign's side (documented fallback); where the closed form is singular (e.g. a
-    swing-up with x_s = x_g), its curve is used anyway with a lateral CP excursion added."""
-    o = problem.spec.optimizer
-    arm = problem.arm
-    K, g0 = arm.K, arm.gravity
+def _nodes_from(values: dict, count: int, xi: dict | None = None) -> list[Node]:
+    """Nodes from values by name (SI units); ``xi`` overrides xi by node name."""
+    names = _node_names(count)
+    times = [0.0, *(values[f"{v}.t"] for v in names[1:-1]), values["duration"]]
     nodes = []
-    for nm, _node in zip(_node_names(len(problem.nodes)), problem.nodes, strict=True):
-        xi = values[f"{nm}.xi"]
-        gam = xi - K * values[f"{nm}.thetadot_deg"] ** 2 + g0 * np.sin(values[f"{nm}.theta_deg"])
-        if sign * gam < o.gamma_min and f"{nm}.xi" in o.free:
-            xi += sign * (o.gamma_min + 2.0) - gam
-        t = 0.0 if nm == "start" else values["duration"] if nm == "goal" else values[f"{nm}.t"]
+    for t, nm in zip(times, names, strict=True):
+        after = values.get(f"{nm}.eta_after")
+        eta = values[f"{nm}.eta"]
         nodes.append(
             Node(
                 t=t,
@@ -464,11 +458,29 @@ def _initial_plan(problem: Problem, values: dict, sign: int) -> CPPlan:
                 xdot=values[f"{nm}.xdot"],
                 ydot=values[f"{nm}.ydot"],
                 thetadot=values[f"{nm}.thetadot_deg"],
-                xi=xi,
-                eta=values[f"{nm}.eta"],
-                eta_after=values.get(f"{nm}.eta_after"),
+                xi=(xi or {}).get(nm, values[f"{nm}.xi"]),
+                eta=eta,
+                eta_after=None if after is None or after == eta else after,
             )
         )
+    return nodes
+
+
+def _initial_plan(problem: Problem, values: dict, sign: int) -> CPPlan:
+    """Closed-form warm start; for nodes whose guesses give gamma the other sign, xi is moved
+    to the sign's side (documented fallback); where the closed form is singular (e.g. a
+    swing-up with x_s = x_g), its curve is used anyway with a lateral CP excursion added."""
+    o = problem.spec.optimizer
+    arm = problem.arm
+    K, g0 = arm.K, arm.gravity
+    xis = {}
+    for nm in _node_names(len(problem.nodes)):
+        xi = values[f"{nm}.xi"]
+        gam = xi - K * values[f"{nm}.thetadot_deg"] ** 2 + g0 * np.sin(values[f"{nm}.theta_deg"])
+        if sign * gam < o.gamma_min and f"{nm}.xi" in o.free:
+            xi += sign * (o.gamma_min + 2.0) - gam
+        xis[nm] = xi
+    nodes = _nodes_from(values, len(problem.nodes), xis)
     try:
         return closed_form(arm, nodes)
     except SingularPlanError:
@@ -572,25 +584,8 @@ def _plan_from(problem: Problem, nlp: _NLP, x: np.ndarray, p: np.ndarray, sign: 
     names = list(_initial_values(problem))
     vals = dict(zip(names, np.asarray(outs[0]).ravel(), strict=True))
     n_ph = len(problem.nodes) - 1
-    node_names = _node_names(len(problem.nodes))
-    times = [0.0, *(vals[f"{v}.t"] for v in node_names[1:-1]), vals["duration"]]
-    nodes = []
-    for i, nm in enumerate(node_names):
-        after = vals.get(f"{nm}.eta_after")
-        nodes.append(
-            Node(
-                t=times[i],
-                x=vals[f"{nm}.x"],
-                y=vals[f"{nm}.y"],
-                theta=vals[f"{nm}.theta_deg"],
-                xdot=vals[f"{nm}.xdot"],
-                ydot=vals[f"{nm}.ydot"],
-                thetadot=vals[f"{nm}.thetadot_deg"],
-                xi=vals[f"{nm}.xi"],
-                eta=vals[f"{nm}.eta"],
-                eta_after=None if after is None or after == vals[f"{nm}.eta"] else after,
-            )
-        )
+    nodes = _nodes_from(vals, len(problem.nodes))
+    times = [node.t for node in nodes]
     n = o.coefficients if o.curve == "bspline" else o.degree + 1
     basis = SplineBasis(o.degree, n)
     phases = tuple(
