@@ -102,7 +102,7 @@ def _initial_values(problem: Problem) -> dict[str, float]:
 
 
 @lru_cache(maxsize=16)
-def _sample_function(arm: Arm) -> ca.Function:
+def _sample_function(arm: Arm, jit: bool = False) -> ca.Function:
     """(P (2 x 5) CP derivatives 0..4, sigma) -> (tau (2), q (3), qd (3), reach margin)."""
     K, g0 = arm.K, arm.gravity
     P = ca.SX.sym("P", 2, 5)
@@ -116,7 +116,8 @@ def _sample_function(arm: Arm) -> ca.Function:
     qd = ca.solve(J, z[3:6])
     qdd = ca.solve(J, zdot[3:6] - kin["jdot_qdot"](q, qd))
     tau = arm_dynamics(arm)["inverse"](q, qd, qdd)[:2]
-    return ca.Function("sample", [P, sigma], [tau, q, qd, reach_margin(arm, z[0], z[1])])
+    opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"]}} if jit else {}
+    return ca.Function("sample", [P, sigma], [tau, q, qd, reach_margin(arm, z[0], z[1])], opts)
 
 
 def _simpson(m: int) -> np.ndarray:
@@ -259,7 +260,7 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
     m = o.samples + (1 - o.samples % 2)  # odd, for Simpson's rule
     s_base = np.linspace(0.0, 1.0, m)
     quad = _simpson(m)
-    sample_fn = _sample_function(arm)
+    sample_fn = _sample_function(arm, o.solver.jit)
     g, lbg, ubg, rows = [], [], [], []
 
     def add(expr, lo, hi, name, t):
@@ -417,7 +418,9 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
         },
     }
     if o.solver.jit:
-        opts.update({"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O1"]}})
+        # compile the small per-sample function (and CasADi its derivatives) to C; compiling
+        # the whole expanded NLP takes gcc minutes, so the outer graph stays MX
+        opts["expand"] = False
     solver = ca.nlpsol("flat", "ipopt", nlp, opts)
     outs = [ca.vertcat(*[sym[n] for n in names]), *coeff_blocks, *[cost_terms[k] for k in weights]]
     unpack = ca.Function("unpack", [x, p], outs)

@@ -217,3 +217,15 @@ def test_v_squared_objective_and_polynomial_curves(paper_solutions):
     poly = _variant(curve="polynomial", degree=11)
     assert poly.status == "solved", poly.message
     assert 3000 < poly.metrics.torque_sq_integral < 12953  # fewer freedoms than the B-spline
+
+
+def test_jit_compiled_solver_gives_the_same_optimum(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # CasADi writes its generated C file to the working folder
+    data = load_problem(PROBLEMS / "transfer_min_torque.yaml").spec.model_dump()
+    data["optimizer"]["gamma_sign"] = ["positive"]
+    data["optimizer"]["solver"]["jit"] = True
+    result = optimize(parse_problem(data))
+    assert result.status == "solved"
+    assert result.solver.extra["objective"] == pytest.approx(
+        TABLE["transfer_min_torque"]["objective"], rel=1e-6
+    )
