@@ -14,6 +14,7 @@ import casadi as ca
 import numpy as np
 
 from .kinematics import link_geometry
+from .mapping import mapped
 from .robot import Arm
 
 
@@ -90,7 +91,7 @@ def inverse_dynamics(arm: Arm, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -
         (N, 3): tau1, tau2 [N m or N] and the passive joint's residual torque [N m], which is
         zero for a dynamically feasible motion.
     """
-    f = arm_dynamics(arm)["inverse"].map(q.shape[0])
+    f = mapped(arm_dynamics(arm)["inverse"], q.shape[0])
     return np.asarray(f(q.T, qd.T, qdd.T)).T
 
 

@@ -25,6 +25,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from .mapping import mapped
+
 STATE_NAMES = ("x", "y", "theta", "xdot", "ydot", "thetadot", "xi", "eta")
 
 
@@ -125,7 +127,7 @@ def output(z: np.ndarray, K: float, g0: float) -> np.ndarray:
     f = flat_functions(K, g0)["output"]
     if z.ndim == 1:
         return np.asarray(f(z))
-    out = np.asarray(f.map(z.shape[0])(z.T))
+    out = np.asarray(mapped(f, z.shape[0])(z.T))
     return out.reshape(2, z.shape[0], 4).transpose(1, 0, 2)
 
 
@@ -152,7 +154,7 @@ def inverse(P: np.ndarray, sigma: float, K: float, g0: float) -> np.ndarray:
         return np.asarray(f(P, sigma)).ravel()
     n = P.shape[0]
     flat = P.transpose(1, 0, 2).reshape(2, 4 * n)
-    return np.asarray(f.map(n)(flat, sigma)).T
+    return np.asarray(mapped(f, n)(flat, sigma)).T
 
 
 def gamma(z: np.ndarray, K: float, g0: float) -> np.ndarray:
@@ -176,6 +178,6 @@ def compensate(z: np.ndarray, v: np.ndarray, K: float, g0: float):
     alpha, zdot, a : numpy.ndarray
         Compensator inputs (N, 2), state derivatives (N, 8), base accelerations (N, 2) [m/s^2].
     """
-    f = flat_functions(K, g0)["compensator"].map(z.shape[0])
+    f = mapped(flat_functions(K, g0)["compensator"], z.shape[0])
     alpha, zdot, a = f(np.asarray(z, float).T, np.asarray(v, float).T)
     return np.asarray(alpha).T, np.asarray(zdot).T, np.asarray(a).T

@@ -14,6 +14,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from .mapping import mapped
 from .robot import Arm
 
 
@@ -123,7 +124,7 @@ def forward_pose(arm: Arm, q: np.ndarray) -> np.ndarray:
     """Third-link pose (x [m], y [m], theta [rad]) for joint coordinates q (3,) or (N, 3)."""
     f = kinematic_functions(arm)["pose"]
     q = np.atleast_2d(q)
-    return np.asarray(f.map(q.shape[0])(q.T)).T.squeeze()
+    return np.asarray(mapped(f, q.shape[0])(q.T)).T.squeeze()
 
 
 def inverse_position(
@@ -224,9 +225,9 @@ def inverse_derivatives(
     """
     fns = kinematic_functions(arm)
     n = q.shape[0]
-    J = np.asarray(fns["jacobian"].map(n)(q.T)).T.reshape(n, 3, 3).transpose(0, 2, 1)
+    J = np.asarray(mapped(fns["jacobian"], n)(q.T)).T.reshape(n, 3, 3).transpose(0, 2, 1)
     qd = np.linalg.solve(J, s_dot[..., None])[..., 0]
-    bias = np.asarray(fns["jdot_qdot"].map(n)(q.T, qd.T)).T
+    bias = np.asarray(mapped(fns["jdot_qdot"], n)(q.T, qd.T)).T
     qdd = np.linalg.solve(J, (s_ddot - bias)[..., None])[..., 0]
     return qd, qdd
 

@@ -23,6 +23,7 @@ from scipy.integrate import solve_ivp
 from . import flat
 from .dynamics import arm_dynamics, inverse_dynamics
 from .kinematics import inverse_derivatives, inverse_position, kinematic_functions
+from .mapping import mapped
 from .plan import CPPlan
 from .robot import Arm
 
@@ -165,8 +166,8 @@ def _closed_loop_function(model: Arm, plant: Arm) -> ca.Function:
 def _pose_states(arm: Arm, X: np.ndarray) -> np.ndarray:
     kin = kinematic_functions(arm)
     n = X.shape[0]
-    s = np.asarray(kin["pose"].map(n)(X[:, :3].T)).T
-    J = np.asarray(kin["jacobian"].map(n)(X[:, :3].T)).T.reshape(n, 3, 3).transpose(0, 2, 1)
+    s = np.asarray(mapped(kin["pose"], n)(X[:, :3].T)).T
+    J = np.asarray(mapped(kin["jacobian"], n)(X[:, :3].T)).T.reshape(n, 3, 3).transpose(0, 2, 1)
     return np.column_stack([s, np.einsum("nij,nj->ni", J, X[:, 3:6])])
 
 
@@ -218,7 +219,7 @@ def simulate_closed_loop(
         t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
         X = Xs[-1]
         Pd = ph.curve.derivatives(t, 4)
-        tau = np.asarray(f.map(t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
+        tau = np.asarray(mapped(f, t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
         ts.append(t)
         states.append(_pose_states(plant or model, Xs))
         taus.append(tau)
