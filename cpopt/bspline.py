@@ -35,9 +35,7 @@ class SplineBasis:
     @property
     def knots(self) -> np.ndarray:
         """The knot vector (count + degree + 1,)."""
-        d, n = self.degree, self.count
-        inner = np.linspace(0.0, 1.0, n - d + 1)[1:-1]
-        return np.r_[np.zeros(d + 1), inner, np.ones(d + 1)]
+        return _knots(self.degree, self.count)
 
     @property
     def breaks(self) -> np.ndarray:
@@ -72,12 +70,14 @@ class SplineBasis:
         return PiecewisePolynomial(t0 + h * b, pieces)
 
 
+def _knots(degree: int, count: int) -> np.ndarray:
+    inner = np.linspace(0.0, 1.0, count - degree + 1)[1:-1]
+    return np.r_[np.zeros(degree + 1), inner, np.ones(degree + 1)]
+
+
 @lru_cache(maxsize=256)
 def _matrix(degree: int, count: int, s: tuple, order: int) -> np.ndarray:
-    basis = SplineBasis.__new__(SplineBasis)
-    object.__setattr__(basis, "degree", degree)
-    object.__setattr__(basis, "count", count)
-    spline = BSpline(basis.knots, np.eye(count), degree)
+    spline = BSpline(_knots(degree, count), np.eye(count), degree)
     if order:
         spline = spline.derivative(order)
     return np.asarray(spline(np.asarray(s, float)))

@@ -18,7 +18,7 @@ share their sign. ``auto`` tries both signs and keeps the better solution.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import casadi as ca
@@ -775,4 +775,4 @@ def clear_cache() -> None:
     _CACHE.clear()
 
 
-__all__ = ["OptimizeResult", "clear_cache", "optimize", "replace"]
+__all__ = ["OptimizeResult", "clear_cache", "optimize"]

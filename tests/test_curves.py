@@ -37,3 +37,27 @@ def test_min_gamma_certificate_is_exact():
         dense = np.hypot(acc[:, 0], acc[:, 1] + 9.81)
         assert value <= dense.min() + 1e-10
         assert value == pytest.approx(dense.min(), abs=1e-6)
+
+
+def test_bspline_pieces_match_the_basis_and_end_conditions_are_local():
+    from cpopt.bspline import SplineBasis, fit
+
+    basis = SplineBasis(8, 14)
+    coeffs = np.random.default_rng(4).normal(size=(14, 2))
+    pieces = basis.to_pieces(coeffs, 0.5, 2.0)
+    s = np.linspace(0, 1, 97)
+    for r in range(5):  # the r-th time derivative is h^-r times the basis derivative
+        expected = basis.matrix(s, r) @ coeffs / 2.0**r
+        got = pieces.derivatives(0.5 + 2.0 * s, 4)[:, :, r]
+        np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    start, end = basis.end_matrices(5)
+    assert np.allclose(np.triu(start, 1), 0) and abs(np.linalg.det(start)) > 0
+    # the r-th derivative at s = 1 uses the last r + 1 coefficients only
+    assert np.allclose(np.triu(end[:, ::-1], 1), 0) and abs(np.linalg.det(end)) > 0
+    # derivatives at s = 0 use only the first five coefficients
+    assert np.allclose(basis.matrix([0.0], 4)[0, 5:], 0)
+    # projecting a degree-7 Hermite curve onto a degree-8 spline reproduces it
+    curve = hermite(0.0, 1.3, np.ones((2, 4)), np.zeros((2, 4)))
+    t = np.linspace(0, 1.3, 50)
+    back = basis.to_pieces(fit(basis, curve), 0.0, 1.3)
+    np.testing.assert_allclose(back.derivatives(t, 3), curve.derivatives(t, 3), atol=1e-8)
