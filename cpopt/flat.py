@@ -27,8 +27,6 @@ import numpy as np
 
 from .mapping import mapped
 
-STATE_NAMES = ("x", "y", "theta", "xdot", "ydot", "thetadot", "xi", "eta")
-
 
 def rotation(theta):
     """Planar rotation matrix R(theta) (CasADi)."""
@@ -99,9 +97,7 @@ def flat_functions(K: float, g0: float) -> dict[str, ca.Function]:
         "output": ca.Function("output", [z], [lower0]),
         "lie_alpha": ca.Function("lie_alpha", [z, alpha], [ca.jacobian(ca.vec(lower), alpha)]),
         "fourth": ca.Function("fourth", [z, alpha], [fourth]),
-        "decoupling": ca.Function("decoupling", [z], [A]),
         "compensator": ca.Function("compensator", [z, v], [alpha_v, zdot_v, a_v]),
-        "field": ca.Function("field", [z, alpha], [zdot, a]),
         "gamma": ca.Function("gamma", [z], [gamma]),
         "inverse": ca.Function("inverse", [P, sigma], [z_inv]),
     }

@@ -29,7 +29,7 @@ from .bspline import SplineBasis, fit
 from .dynamics import arm_dynamics
 from .kinematics import ReachError, inverse_position_symbolic, kinematic_functions, reach_margin
 from .plan import CPPlan, Node, Phase, SingularPlanError, closed_form
-from .problem import Problem
+from .problem import Problem, gamma_is_free
 from .results import SolverInfo
 from .robot import Arm
 from .trajectory import sample
@@ -211,11 +211,12 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
     x_names = [n for n in names if n in free]
     p_names = [n for n in names if n not in free]
     x_parts = [sym[n] for n in x_names]
-    blocks = [("value", n) for n in x_names]  # what each entry of x_parts is, for warm starts
+    # (label, size) of each entry of x_parts, for warm starts and bounds
+    blocks = [(("value", n), 1) for n in x_names]
 
     def decide(expr, label):
         x_parts.append(ca.vec(expr))
-        blocks.append(label)
+        blocks.append((label, int(expr.numel())))
 
     node_names = _node_names(n_nodes)
     times = [ca.MX(0.0), *(sym[f"{v}.t"] for v in node_names[1:-1]), sym["duration"]]
@@ -242,11 +243,11 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
         for i in range(n_nodes):
             if holding[i]:
                 a1 = ca.MX.sym(f"alpha1_{i}")
-                decide(a1, ("zero", 1))
+                decide(a1, ("zero",))
                 alphas[i] = ca.vertcat(a1, 0)
             elif 0 < i < n_nodes - 1:
                 a = ca.MX.sym(f"alpha_{i}", 2)
-                decide(a, ("zero", 2))
+                decide(a, ("zero",))
                 alphas[i] = a
     weights = _weights(problem)
     margin = None
@@ -354,10 +355,9 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
                 if vmax is not None:
                     vm = float(np.radians(vmax) if revolute[i] else vmax) * (1 - LIMIT_SAFETY)
                     add(qd[i, :].T, -vm, vm, f"|q{i + 1}dot| within limits", tnodes)
-        w = quad * 1.0
         mm = len(s_base)
         if "torque" in cost_terms:
-            cost_terms["torque"] += h * ca.dot(w, ca.sum1(tau[:, :mm] ** 2).T)
+            cost_terms["torque"] += h * ca.dot(quad, ca.sum1(tau[:, :mm] ** 2).T)
         if "energy" in cost_terms:
             # |tau_i q_i'| through its epigraph: slack >= +-power, exact and smooth for Ipopt
             power = tau[:, :mm] * qd[:2, :mm]
@@ -379,9 +379,9 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
                 f"energy slack (phase {k + 1})",
                 [(k, float(sj)) for sj in s[:mm] for _ in range(2)],
             )
-            cost_terms["energy"] += h * ca.dot(w, ca.sum1(slack).T)
+            cost_terms["energy"] += h * ca.dot(quad, ca.sum1(slack).T)
         if "v_squared" in cost_terms:
-            cost_terms["v_squared"] += h * ca.dot(w, ca.sum2(D[4][:mm, :] ** 2))
+            cost_terms["v_squared"] += h * ca.dot(quad, ca.sum2(D[4][:mm, :] ** 2))
         # the sign of gamma at the phase's nodes, where it is free
         for z, tn in ((za, 0.0), (zb, 1.0)):
             gam = fl["gamma"](z)
@@ -514,13 +514,13 @@ def _guess(nlp: _NLP, problem: Problem, values: dict, sign: int) -> np.ndarray:
         coeffs.append(C)
     node_of = {nm: i for i, nm in enumerate(_node_names(len(plan.nodes)))}
     out = []
-    for label in nlp.blocks:
+    for label, size in nlp.blocks:
         if label[0] == "value":
             nm = label[1]
             node = nm.split(".")[0]
             out.append(plan.nodes[node_of[node]].xi if nm.endswith(".xi") else values[nm])
         elif label[0] == "zero":
-            out.extend([0.0] * label[1])
+            out.extend([0.0] * size)
         elif label[0] == "margin":
             out.append(o.gamma_min)
         else:
@@ -545,8 +545,8 @@ def _signs(problem: Problem) -> list[int]:
     arm = problem.arm
     fixed = []
     for nm, node in zip(_node_names(len(problem.nodes)), problem.nodes, strict=True):
-        if not any(f"{nm}.{f}" in o.free for f in ("xi", "theta_deg", "thetadot_deg")):
-            fixed.append(node.xi - arm.K * node.thetadot**2 + arm.gravity * np.sin(node.theta))
+        if not gamma_is_free(nm, o.free):
+            fixed.append(float(flat.gamma(node.state(), arm.K, arm.gravity)))
     signs = {int(np.sign(g)) for g in fixed if abs(g) > 0}
     return sorted(signs) if signs else [-1, 1]
 
@@ -701,12 +701,7 @@ def _between_samples(problem: Problem, plan: CPPlan, times: list) -> list[set]:
 def _bounds(problem: Problem, nlp: _NLP) -> tuple[np.ndarray, np.ndarray]:
     free = problem.spec.optimizer.free
     lo, hi = [], []
-    for label in nlp.blocks:
-        size = {"value": 1, "zero": label[1] if label[0] == "zero" else 0, "margin": 1}.get(
-            label[0], 0
-        )
-        if label[0] == "coef":
-            size = 2 * (label[3] - label[2])
+    for label, size in nlp.blocks:
         if label[0] == "value":
             a, b = free[label[1]]
             lo.append(-np.inf if a is None else _to_si(label[1], a))
@@ -770,9 +765,4 @@ def optimize(problem: Problem) -> OptimizeResult:
     return OptimizeResult(status=status, plan=plan, solver=solver, violations=violations)
 
 
-def clear_cache() -> None:
-    """Forget the built solvers (the next solve rebuilds; for timing builds)."""
-    _CACHE.clear()
-
-
-__all__ = ["OptimizeResult", "clear_cache", "optimize"]
+__all__ = ["OptimizeResult", "optimize"]

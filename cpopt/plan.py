@@ -120,17 +120,6 @@ class CPPlan:
         """Total duration [s]."""
         return self.nodes[-1].t - self.nodes[0].t
 
-    def node_gammas(self) -> list[tuple[float, float]]:
-        """gamma [m/s^2] at both ends of each phase, as given by the node values."""
-        K, g0 = self.arm.K, self.arm.gravity
-        return [
-            (
-                float(flat.gamma(a.state(after=True), K, g0)),
-                float(flat.gamma(b.state(), K, g0)),
-            )
-            for a, b in zip(self.nodes[:-1], self.nodes[1:], strict=True)
-        ]
-
     def min_abs_gamma(self) -> tuple[float, float]:
         """Certified minimum of |gamma| over the whole plan [m/s^2] and where it occurs [s].
 

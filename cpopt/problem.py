@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from . import flat
 from .kinematics import ReachError, inverse_derivatives, inverse_position
 from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, Arm, Link
@@ -378,16 +379,15 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
         )
 
 
-def _node_gamma_free(path: str, free: dict) -> bool:
-    key = path.replace("motion.", "")
-    return any(f"{key}.{v}" in free for v in ("xi", "theta_deg", "thetadot_deg"))
+def gamma_is_free(node: str, free: dict) -> bool:
+    """True when gamma at a node (``start``, ``via[i]``, ``goal``) depends on a freed value."""
+    return any(f"{node}.{v}" in free for v in ("xi", "theta_deg", "thetadot_deg"))
 
 
 def _check_gamma(arm, nodes, paths, free, source) -> None:
     """gamma != 0 at nodes with fixed values, and one sign within each phase."""
-    K, g0 = arm.K, arm.gravity
-    gam = [n.xi - K * n.thetadot**2 + g0 * math.sin(n.theta) for n in nodes]
-    fixed = [not _node_gamma_free(p, free) for p in paths]
+    gam = [float(flat.gamma(n.state(), arm.K, arm.gravity)) for n in nodes]
+    fixed = [not gamma_is_free(p.removeprefix("motion."), free) for p in paths]
     for g, is_fixed, path in zip(gam, fixed, paths, strict=True):
         if is_fixed and abs(g) < GAMMA_ZERO:
             raise ProblemError(

@@ -192,8 +192,3 @@ def write_solution(solution: Solution, directory: str | Path) -> list[Path]:
     atomic_write(json_path, lambda h: h.write(json.dumps(document, indent=2) + "\n"))
     written.insert(0, json_path)
     return written
-
-
-def read_solution(directory: str | Path) -> dict:
-    """Read a ``solution.json`` back as a dict."""
-    return json.loads((Path(directory) / "solution.json").read_text(encoding="utf-8"))

@@ -20,7 +20,7 @@ In every kind the third link's angle is ``theta = (sum of revolute joint angles)
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -139,20 +139,6 @@ class Arm:
         """
         l3 = self.links[2]
         return (l3.I + l3.mass * l3.d**2) / (l3.mass * l3.d)
-
-    def with_links(self, *scales: float) -> Arm:
-        """Return a copy with each link's mass and inertia scaled (model-error studies).
-
-        Parameters
-        ----------
-        scales : float
-            Three positive factors, one per link, applied to mass and inertia.
-        """
-        links = tuple(
-            replace(link, mass=link.mass * s, inertia=link.I * s)
-            for link, s in zip(self.links, scales, strict=True)
-        )
-        return replace(self, links=links)
 
 
 def uniform_rod(length: float, mass: float) -> Link:
