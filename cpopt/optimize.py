@@ -155,7 +155,7 @@ def _settings_key(problem: Problem):
         o.smooth_torque,
         o.samples,
         lim.model_dump_json(),
-        o.solver.jit,
+        o.solver.model_dump_json(),  # Ipopt options are baked into the solver
     )
 
 
@@ -414,7 +414,7 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
             "max_iter": o.solver.max_iter,
             "tol": o.solver.tol,
             "sb": "yes",
-            "mu_strategy": "adaptive",
+            "mu_strategy": o.solver.mu_strategy,
         },
     }
     if o.solver.jit:

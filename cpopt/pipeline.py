@@ -69,6 +69,39 @@ def evaluate(
     )
 
 
+def _collocation(problem: Problem) -> Solution:
+    """The collocation peer: warm start (optional), solve, sample, replay open loop."""
+    from .collocation import collocate, joint_metrics, joint_trajectory, replay
+
+    warm = None
+    if problem.spec.collocation.warm_start == "flat":
+        from .optimize import optimize
+
+        warm = optimize(problem).plan
+    result = collocate(problem, warm_start=warm)
+    plan = result.plan
+    traj = joint_trajectory(plan)
+    checked = replay(plan, problem.nodes[-1], problem.spec.collocation.replay_tolerance)
+    status, message = result.status, result.solver.message
+    if status == "solved" and not checked.passed():
+        status = "verification_failed"
+        message = (
+            f"the open-loop replay of the torques ends {checked.final_state_error:.3g} from the "
+            f"goal (replay_tolerance {checked.tolerance:g})"
+        )
+    return Solution(
+        problem.name,
+        status,
+        "collocation",
+        plan=plan,
+        trajectory=traj,
+        metrics=joint_metrics(plan, traj),
+        verification=checked,
+        solver=result.solver,
+        message=message,
+    )
+
+
 def solve(problem: Problem) -> Solution:
     """Solve a validated problem with its planner and verify the result.
 
@@ -79,6 +112,8 @@ def solve(problem: Problem) -> Solution:
     """
     spec = problem.spec
     verification = spec.verification
+    if problem.planner == "collocation":
+        return _collocation(problem)
     if problem.planner == "optimize":
         from .optimize import optimize
 

@@ -125,6 +125,7 @@ class SolverSpec(_Spec):
     tol: Positive = 1e-8
     print_level: Annotated[int, Field(ge=0, le=12)] = 0
     jit: bool = False
+    mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
 
 
 class OptimizerSpec(_Spec):
@@ -157,6 +158,18 @@ class OptimizerSpec(_Spec):
         return value
 
 
+class CollocationSpec(_Spec):
+    """Direct-collocation peer settings (see docs/problems.md)."""
+
+    intervals: Annotated[int, Field(ge=4, le=2000)] = 100
+    method: Literal["collocation", "multiple_shooting"] = "collocation"
+    degree: Annotated[int, Field(ge=1, le=9)] = 3
+    steps: Annotated[int, Field(ge=1, le=20)] = 1
+    gamma_constraint: bool = True
+    warm_start: Literal["none", "flat"] = "none"
+    replay_tolerance: Positive = 1e-3
+
+
 class VerificationSpec(_Spec):
     """Verification settings: tracking poles [1/s] and trajectory samples per phase."""
 
@@ -173,9 +186,10 @@ class ProblemSpec(_Spec):
     description: str | None = None
     arm: ArmSpec
     motion: MotionSpec
-    planner: Literal["closed_form", "optimize"] = "closed_form"
+    planner: Literal["closed_form", "optimize", "collocation"] = "closed_form"
     closed_form: ClosedFormSpec = ClosedFormSpec()
     optimizer: OptimizerSpec = OptimizerSpec()
+    collocation: CollocationSpec = CollocationSpec()
     verification: VerificationSpec = VerificationSpec()
 
 
@@ -333,7 +347,7 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
             )
         except ReachError as err:
             raise ProblemError(source, path, f"state not reachable: {err}") from None
-    free = spec.optimizer.free if spec.planner == "optimize" else {}
+    free = spec.optimizer.free if spec.planner != "closed_form" else {}
     names = free_value_names(spec)
     for name, (lo, hi) in free.items():
         if name not in names:
@@ -348,9 +362,13 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
             raise ProblemError(
                 source, f"optimizer.free.{name}", f"lower bound {lo:g} exceeds upper bound {hi:g}"
             )
-    _check_gamma(arm, nodes, paths, free, source)
-    if spec.planner == "optimize":
+    flat_plan = spec.planner != "collocation" or spec.collocation.warm_start == "flat"
+    if flat_plan:
+        _check_gamma(arm, nodes, paths, free, source)
+    if spec.planner != "closed_form" and flat_plan:
         _check_optimizer(spec, len(nodes) - 1, source)
+    if spec.planner == "collocation":
+        _check_collocation(spec, source)
     return arm, nodes
 
 
@@ -373,6 +391,27 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
             f"give one sign per phase ({phases}), got {len(o.gamma_sign)}",
         )
     weights = {o.objective: 1.0} if isinstance(o.objective, str) else o.objective
+    if weights.get("duration") and "duration" not in o.free:
+        raise ProblemError(
+            source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
+        )
+
+
+COLLOCATION_OBJECTIVES = ("torque", "duration", "gamma_margin")
+
+
+def _check_collocation(spec: ProblemSpec, source: str) -> None:
+    o = spec.optimizer
+    weights = {o.objective: 1.0} if isinstance(o.objective, str) else o.objective
+    unsupported = sorted(k for k, w in weights.items() if w and k not in COLLOCATION_OBJECTIVES)
+    if unsupported:
+        raise ProblemError(
+            source,
+            "optimizer.objective",
+            f"the collocation planner minimizes {', '.join(COLLOCATION_OBJECTIVES)}; "
+            f"{', '.join(unsupported)} belongs to the flat optimizer (v is the CP's fourth "
+            "derivative; |power| under piecewise-constant torques has no smooth transcription)",
+        )
     if weights.get("duration") and "duration" not in o.free:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"

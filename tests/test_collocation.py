@@ -1,0 +1,111 @@
+"""The direct-collocation peer: same problem as the flat optimizer, honest figures."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpopt.collocation import collocate, joint_functions, joint_metrics, joint_trajectory, replay
+from cpopt.dynamics import arm_dynamics
+from cpopt.flat import gamma as flat_gamma
+from cpopt.problem import ProblemError, load_problem, parse_problem
+
+ROOT = Path(__file__).resolve().parent.parent
+TRANSFER = ROOT / "benchmarks" / "problems" / "transfer.yaml"
+
+
+@pytest.fixture(scope="module")
+def transfer():
+    problem = load_problem(TRANSFER)
+    data = problem.spec.model_dump()
+    data["planner"] = "collocation"
+    return parse_problem(data, "transfer", "transfer")
+
+
+@pytest.fixture(scope="module")
+def solved(transfer):
+    return collocate(transfer, intervals=30, gamma_constraint=True)
+
+
+def test_joint_gamma_matches_the_flat_definition(transfer):
+    """gamma from joint state and accelerations equals xi - K thetadot^2 + g0 sin(theta)."""
+    arm = transfer.arm
+    rng = np.random.default_rng(3)
+    step = joint_functions(arm)
+    for _ in range(5):
+        q = np.array([0.5, -1.2, 1.9]) + 0.3 * rng.standard_normal(3)
+        qd = rng.standard_normal(3)
+        tau = 20 * rng.standard_normal(2)
+        qdd, gam, s, sdot, sddot = (np.asarray(v).ravel() for v in step(q, qd, tau))
+        theta = s[2]
+        xi = sddot[0] * np.cos(theta) + sddot[1] * np.sin(theta)
+        z = np.r_[s, sdot, xi, 0.0]
+        assert gam[0] == pytest.approx(float(flat_gamma(z, arm.K, arm.gravity)), abs=1e-9)
+        # the passive joint is torque-free under the forward dynamics
+        res = np.asarray(arm_dynamics(arm)["inverse"](q, qd, qdd)).ravel()
+        assert abs(res[2]) < 1e-9
+
+
+def test_collocation_solves_the_transfer_and_keeps_gamma_at_knots(transfer, solved):
+    assert solved.status == "solved"
+    plan = solved.plan
+    assert plan.knots.size == 31 and plan.tau.shape == (30, 2)
+    step = joint_functions(transfer.arm)
+    gam = [float(step(plan.q[k], plan.qd[k], plan.tau[k])[1]) for k in range(30)]
+    assert min(gam) >= 2.0 - 1e-6  # sign positive, gamma_min 2 m/s^2, at every knot
+    # boundary states as asked
+    start, goal = transfer.nodes[0], transfer.nodes[-1]
+    np.testing.assert_allclose(plan.nodes[0].state()[:6], start.state()[:6], atol=1e-8)
+    np.testing.assert_allclose(plan.nodes[-1].state()[:6], goal.state()[:6], atol=1e-8)
+    # the cost of N = 30: within 3 % of the N = 200 optimum measured by the benchmark (66183)
+    assert plan.torque_sq_integral() == pytest.approx(66183, rel=0.03)
+
+
+def test_replay_and_metrics(transfer, solved):
+    plan = solved.plan
+    traj = joint_trajectory(plan)
+    m = joint_metrics(plan, traj)
+    assert m.torque_sq_integral == pytest.approx(plan.torque_sq_integral())
+    assert m.peak_torque[0] == pytest.approx(np.abs(plan.tau[:, 0]).max())
+    check = replay(plan, transfer.nodes[-1], 1e-3)
+    # radau degree 3 on 30 intervals: the replay ends within 1e-4 of the goal, not exactly
+    assert 1e-12 < check.final_state_error < 1e-4
+    assert check.passed()
+    # a second solve of the same structure reuses the transcription
+    again = collocate(transfer, intervals=30, gamma_constraint=True)
+    assert again.solver.build_time_s < 0.5
+    assert again.plan.torque_sq_integral() == pytest.approx(plan.torque_sq_integral(), rel=1e-8)
+
+
+def test_collocation_refuses_flat_only_objectives():
+    data = load_problem(TRANSFER).spec.model_dump()
+    data["planner"] = "collocation"
+    data["optimizer"]["objective"] = "v_squared"
+    with pytest.raises(ProblemError, match=r"optimizer\.objective"):
+        parse_problem(data, "x.yaml")
+
+
+@pytest.mark.slow
+def test_benchmark_quick_mode_runs():
+    """The benchmark cannot rot: its quick mode runs and prints a RATIO line."""
+    out = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "vs_collocation.py"),
+            "--quick",
+            "--problems",
+            "transfer",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=True,
+    ).stdout
+    ratio = [line for line in out.splitlines() if line.startswith("RATIO transfer ")]
+    assert len(ratio) == 1
+    assert "solve_time_collocation_gamma_N10/flat=" in ratio[0]
+    cost = float(ratio[0].split("cost_flat/collocation_gamma_N20=")[1])
+    assert 0.5 < cost < 3.0
+    assert "flat" in out and "collocation_gamma" in out
