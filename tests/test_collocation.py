@@ -1,7 +1,5 @@
 """The direct-collocation peer: same problem as the flat optimizer, honest figures."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -85,27 +83,3 @@ def test_collocation_refuses_flat_only_objectives():
     data["optimizer"]["objective"] = "v_squared"
     with pytest.raises(ProblemError, match=r"optimizer\.objective"):
         parse_problem(data, "x.yaml")
-
-
-@pytest.mark.slow
-def test_benchmark_quick_mode_runs():
-    """The benchmark cannot rot: its quick mode runs and prints a RATIO line."""
-    out = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "benchmarks" / "vs_collocation.py"),
-            "--quick",
-            "--problems",
-            "transfer",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=True,
-    ).stdout
-    ratio = [line for line in out.splitlines() if line.startswith("RATIO transfer ")]
-    assert len(ratio) == 1
-    assert "solve_time_collocation_gamma_N10/flat=" in ratio[0]
-    cost = float(ratio[0].split("cost_flat/collocation_gamma_N20=")[1])
-    assert 0.5 < cost < 3.0
-    assert "flat" in out and "collocation_gamma" in out

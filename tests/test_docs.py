@@ -63,3 +63,44 @@ def _public_functions():
 def test_every_public_function_has_a_docstring():
     missing = [name for name, obj in _public_functions() if not inspect.getdoc(obj)]
     assert not missing, f"no docstring: {missing}"
+
+
+def _commands():
+    """Each command of the README's bash blocks, without the installs (CI runs the test one)."""
+    test_command = _blocks(ROOT / "README.md", "bash")[1].strip()
+    for block in _blocks(ROOT / "README.md", "bash"):
+        if block.strip() == test_command:
+            continue
+        for part in block.strip().split("&&"):
+            part = part.strip()
+            if not part.startswith("python -m pip install"):
+                yield part
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", list(_commands()))
+def test_readme_commands_run(command, tmp_path):
+    """Run in a scratch folder that sees the repository's problems and benchmarks."""
+    import shlex
+    import subprocess
+    import sys
+
+    for name in ("problems", "benchmarks"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    argv = shlex.split(command)
+    if argv[0] == "python":
+        argv[0] = sys.executable
+    done = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    if "vs_collocation.py" in command:
+        ratios = [line for line in done.stdout.splitlines() if line.startswith("RATIO ")]
+        assert [r.split()[1] for r in ratios] == ["transfer", "swing_up"]
+        for line in ratios:
+            assert re.fullmatch(
+                r"RATIO \w+ solve_time_collocation_gamma_N10/flat=[0-9.]+ "
+                r"cost_flat/collocation_gamma_N20=[0-9.]+",
+                line,
+            )
+    if "cpopt solve" in command:
+        assert (tmp_path / "out").is_dir()
+        assert "solved" in done.stdout
