@@ -29,18 +29,18 @@ import numpy as np
 
 from . import flat
 from .dynamics import arm_dynamics, holding_torque
-from .kinematics import inverse_derivatives, inverse_position, kinematic_functions
+from .kinematics import joint_state, kinematic_functions
+from .mapping import mapped
+from .optimize import _STATUS, MIN_PHASE, _initial_values, _node_names, _to_si, _weights
 from .plan import Node
 from .problem import Problem
 from .results import SolverInfo
 from .robot import Arm
-from .simulate import SimulationResult
+from .simulate import SimulationResult, cp_of, goal_error, pose_states
 from .trajectory import Metrics, Trajectory
 
 NODE_FIELDS = ("x", "y", "theta_deg", "xdot", "ydot", "thetadot_deg")
 """Node values collocation imposes (in the file's units; xi and eta have no meaning here)."""
-MIN_PHASE = 0.05
-"""Shortest phase [s] when times are free."""
 REFINE = 8
 """Samples per interval of the collocation polynomials in the trajectory."""
 
@@ -128,31 +128,10 @@ class CollocationResult:
     violations: list = field(default_factory=list)
 
 
-def _node_values(problem: Problem) -> list[dict]:
-    spec = problem.spec.motion
-    return [s.model_dump() for s in (spec.start, *spec.via, spec.goal)]
-
-
-def _names(count: int) -> list[str]:
-    return ["start", *(f"via[{i}]" for i in range(count - 2)), "goal"]
-
-
-def _to_si(name: str, value: float) -> float:
-    return float(np.radians(value)) if name.endswith("_deg") else float(value)
-
-
-def _node_joint_state(arm: Arm, node: Node) -> tuple[np.ndarray, np.ndarray]:
-    q = inverse_position(arm, node.x, node.y, node.theta)
-    qd, _ = inverse_derivatives(
-        arm, q, np.array([[node.xdot, node.ydot, node.thetadot]]), np.zeros((1, 3))
-    )
-    return q[0], qd[0]
-
-
 def _cold_guess(problem: Problem, t: np.ndarray) -> tuple[np.ndarray, ...]:
     """Smooth-step joint motion between the nodes' joint states; the holding torques."""
     arm = problem.arm
-    states = [_node_joint_state(arm, n) for n in problem.nodes]
+    states = [joint_state(arm, n.state()) for n in problem.nodes]
     times = [n.t for n in problem.nodes]
     q = np.zeros((t.size, 3))
     qd = np.zeros((t.size, 3))
@@ -192,11 +171,6 @@ def _sign(problem: Problem, warm) -> int:
     return 1 if flat.gamma(start.state(), problem.arm.K, problem.arm.gravity) > 0 else -1
 
 
-def _weights(problem: Problem) -> dict[str, float]:
-    obj = problem.spec.optimizer.objective
-    return {obj: 1.0} if isinstance(obj, str) else dict(obj)
-
-
 @dataclass
 class _Stage:
     stage: object
@@ -206,10 +180,9 @@ class _Stage:
     intervals: int
 
 
-def _limits(problem: Problem, st: _Stage, step) -> None:
+def _limits(problem: Problem, st: _Stage) -> None:
     lim = problem.spec.optimizer.limits
-    arm = problem.arm
-    revolute = [c == "R" for c in arm.kind[:2]] + [True]
+    revolute = problem.arm.revolute
     for i, tmax in enumerate(lim.torque):
         if tmax is not None:
             st.stage.subject_to(-tmax <= (st.tau[i] <= tmax))
@@ -223,12 +196,14 @@ def _limits(problem: Problem, st: _Stage, step) -> None:
             st.stage.subject_to(-vm <= (st.qd[i] <= vm))
 
 
-def _node_constraints(ocp, problem: Problem, index: int, q, qd, step) -> None:
+def _node_constraints(ocp, problem: Problem, index: int, q, qd) -> None:
     """Fixed node fields by equality, freed ones within their bounds (q, qd at the node)."""
     free = problem.spec.optimizer.free
-    values = _node_values(problem)[index]
-    name = _names(len(problem.nodes))[index]
-    _, _, s, sdot, _ = step(q, qd, ca.DM.zeros(2))
+    values = _initial_values(problem)
+    name = _node_names(len(problem.nodes))[index]
+    kin = kinematic_functions(problem.arm)
+    s = kin["pose"](q)
+    sdot = kin["jacobian"](q) @ qd
     expr = dict(zip(NODE_FIELDS, [s[0], s[1], s[2], sdot[0], sdot[1], sdot[2]], strict=True))
     for f in NODE_FIELDS:
         key = f"{name}.{f}"
@@ -239,7 +214,7 @@ def _node_constraints(ocp, problem: Problem, index: int, q, qd, step) -> None:
             if hi is not None:
                 ocp.subject_to(expr[f] <= _to_si(f, hi))
         else:
-            ocp.subject_to(expr[f] == _to_si(f, values[f]))
+            ocp.subject_to(expr[f] == values[key])
 
 
 def _phase_times(problem: Problem) -> tuple[list, list]:
@@ -287,7 +262,7 @@ def _build(problem: Problem, intervals: int, gamma_constraint: bool, sign: int, 
         if margin is not None:
             stage.subject_to(sign * gamma >= margin)
         st = _Stage(stage, q, qd, tau, n_k)
-        _limits(problem, st, step)
+        _limits(problem, st)
         if weights.get("torque"):
             objective += weights["torque"] * stage.integral(ca.sumsqr(tau))
         if any_free:
@@ -300,14 +275,14 @@ def _build(problem: Problem, intervals: int, gamma_constraint: bool, sign: int, 
         if k == 0:
             if any_free:
                 ocp.subject_to(stage.t0 == 0)
-            _node_constraints(ocp, problem, 0, stage.at_t0(q), stage.at_t0(qd), step)
+            _node_constraints(ocp, problem, 0, stage.at_t0(q), stage.at_t0(qd))
         else:
             prev = stages[-1]
             ocp.subject_to(stage.at_t0(q) == prev.stage.at_tf(prev.q))
             ocp.subject_to(stage.at_t0(qd) == prev.stage.at_tf(prev.qd))
             if any_free:
                 ocp.subject_to(stage.t0 == prev.stage.tf)
-        _node_constraints(ocp, problem, k + 1, stage.at_tf(q), stage.at_tf(qd), step)
+        _node_constraints(ocp, problem, k + 1, stage.at_tf(q), stage.at_tf(qd))
         if any_free:
             bounds = opt.free.get("duration" if k == len(times) - 2 else f"via[{k}].t")
             end = stage.tf
@@ -345,13 +320,6 @@ _CACHE: dict = {}
 """Transcribed problems by (problem, intervals, gamma constraint, sign): a repeated solve
 reuses rockit's transcription and CasADi's expanded solver, as the flat optimizer does."""
 
-_STATUS = {
-    "Solve_Succeeded": "solved",
-    "Solved_To_Acceptable_Level": "solved",
-    "Infeasible_Problem_Detected": "infeasible",
-    "Maximum_Iterations_Exceeded": "max_iterations",
-}
-
 
 def _extract(problem: Problem, sol, stages: list[_Stage], sign: int) -> JointPlan:
     knots, qs, qds, taus = [], [], [], []
@@ -374,16 +342,12 @@ def _extract(problem: Problem, sol, stages: list[_Stage], sign: int) -> JointPla
     knots = np.concatenate(knots)
     q = np.concatenate(qs)
     qd = np.concatenate(qds)
-    step = joint_functions(problem.arm)
+    reached = pose_states(problem.arm, np.column_stack([q, qd]))
+    reached[:, 3:][np.abs(reached[:, 3:]) < 1e-9] = 0.0  # at rest, as asked
     nodes = []
     for node in problem.nodes:
         i = int(np.argmin(np.abs(knots - node.t))) if node is not problem.nodes[-1] else -1
-        _, _, s, sdot, _ = step(q[i], qd[i], np.zeros(2))
-        sdot = np.asarray(sdot).ravel()
-        sdot[np.abs(sdot) < 1e-9] = 0.0  # at rest, as asked
-        nodes.append(
-            Node(float(knots[i]), *np.asarray(s).ravel(), *np.asarray(sdot).ravel(), 0.0, 0.0)
-        )
+        nodes.append(Node(float(knots[i]), *reached[i], 0.0, 0.0))
     return JointPlan(
         arm=problem.arm,
         nodes=tuple(nodes),
@@ -446,7 +410,7 @@ def collocate(
     status = _STATUS.get(ipopt, "not_converged")
     solve_time = float(stats.get("t_wall_total", total))  # Ipopt alone (record_time)
     plan = _extract(problem, sol, stages, sign if gamma_constraint else 0)
-    objective = float(sol.value(ocp.objective)) if hasattr(ocp, "objective") else float("nan")
+    objective = float(sol.value(ocp.objective))
     info = SolverInfo(
         iterations=int(stats.get("iter_count", 0)),
         build_time_s=total - solve_time,
@@ -476,7 +440,7 @@ def joint_trajectory(plan: JointPlan) -> Trajectory:
     """
     f = plan.fine
     n = f["t"].size
-    step = joint_functions(plan.arm).map(n)
+    step = mapped(joint_functions(plan.arm), n)
     qdd, gamma, s, sdot, sddot = (np.asarray(v).T for v in step(f["q"].T, f["qd"].T, f["tau"].T))
     K = plan.arm.K
     theta, w = s[:, 2], sdot[:, 2]
@@ -594,7 +558,6 @@ def replay(plan: JointPlan, goal: Node, tolerance: float = 1e-3) -> ReplayCheck:
     from scipy.integrate import solve_ivp
 
     forward = arm_dynamics(plan.arm)["forward"]
-    pose = kinematic_functions(plan.arm)
     f = plan.fine
     X = np.concatenate([plan.q[0], plan.qd[0]])
     states, times = [], []
@@ -612,22 +575,13 @@ def replay(plan: JointPlan, goal: Node, tolerance: float = 1e-3) -> ReplayCheck:
         times.append(sol.t)
         states.append(sol.y.T)
     t = np.concatenate(times)
-    Xs = np.concatenate(states)
-    s = np.asarray(pose["pose"].map(len(t))(Xs[:, :3].T)).T
-    J = pose["jacobian"].map(len(t))(Xs[:, :3].T)
-    sdot = np.array([np.asarray(J[:, 3 * i : 3 * i + 3]) @ Xs[i, 3:] for i in range(len(t))])
-    state = np.column_stack([s, sdot])
+    state = pose_states(plan.arm, np.concatenate(states))
     K = plan.arm.K
-    cp = state[:, :2] + K * np.column_stack([np.cos(state[:, 2]), np.sin(state[:, 2])])
-    ref = plan.fine
-    keep = np.r_[np.diff(ref["t"]) > 0, True]
-    s_ref = np.asarray(pose["pose"].map(int(keep.sum()))(ref["q"][keep].T)).T
-    cp_ref_all = s_ref[:, :2] + K * np.column_stack([np.cos(s_ref[:, 2]), np.sin(s_ref[:, 2])])
-    cp_ref = np.column_stack([np.interp(t, ref["t"][keep], cp_ref_all[:, i]) for i in range(2)])
-    err = np.linalg.norm(cp - cp_ref, axis=1)
-    end = state[-1] - goal.state()[:6]
-    end[2] = (end[2] + np.pi) % (2 * np.pi) - np.pi
+    keep = np.r_[np.diff(f["t"]) > 0, True]
+    planned = cp_of(K, pose_states(plan.arm, np.column_stack([f["q"], f["qd"]])[keep]))
+    cp_ref = np.column_stack([np.interp(t, f["t"][keep], planned[:, i]) for i in range(2)])
+    err = np.linalg.norm(cp_of(K, state) - cp_ref, axis=1)
     result = SimulationResult(
-        "open_loop", t, state, err, float(err.max()), float(np.abs(end).max())
+        "open_loop", t, state, err, float(err.max()), goal_error(goal, state[-1])
     )
     return ReplayCheck(result, tolerance)

@@ -232,6 +232,20 @@ def inverse_derivatives(
     return qd, qdd
 
 
+def joint_state(arm: Arm, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joint positions and velocities (3,), (3,) of a third-link state z = (x, y, theta,
+    xdot, ydot, thetadot, ...) on the arm's branch.
+
+    Raises
+    ------
+    ReachError
+        If the pose is out of reach or singular.
+    """
+    q = inverse_position(arm, z[0], z[1], z[2])
+    qd, _ = inverse_derivatives(arm, q, np.asarray(z[None, 3:6], float), np.zeros((1, 3)))
+    return q[0], qd[0]
+
+
 def inverse_position_symbolic(arm: Arm, x, y, theta):
     """Joint coordinates (3,) from the pose as CasADi expressions, on the arm's branch.
 

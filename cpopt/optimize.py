@@ -275,7 +275,7 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
     lifted_parts, lifted_values = [], []
     coeff_blocks = []
     lim = o.limits
-    revolute = [c == "R" for c in arm.kind[:2]] + [True]
+    revolute = arm.revolute
     for k in range(n_nodes - 1):
         h = times[k + 1] - times[k]
         za, zb = state(k, True), state(k + 1, False)
@@ -678,7 +678,7 @@ def _between_samples(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     for i, tmax in enumerate(lim.torque):
         if tmax is not None:
             checks.append((lambda tr, i=i: np.abs(tr.tau[:, i]), tmax))
-    revolute = [c == "R" for c in problem.arm.kind[:2]] + [True]
+    revolute = problem.arm.revolute
     for i, vmax in enumerate(lim.joint_velocity or ()):
         if vmax is not None:
             vm = np.radians(vmax) if revolute[i] else vmax

@@ -132,6 +132,11 @@ class Arm:
             )
 
     @property
+    def revolute(self) -> tuple[bool, bool, bool]:
+        """Which joints are revolute (angles in rad, limits in deg in files); the third always."""
+        return (self.kind[0] == "R", self.kind[1] == "R", True)
+
+    @property
     def K(self) -> float:
         """Distance of the third link's centre of percussion from its joint [m].
 

@@ -22,9 +22,9 @@ from scipy.integrate import solve_ivp
 
 from . import flat
 from .dynamics import arm_dynamics, inverse_dynamics
-from .kinematics import inverse_derivatives, inverse_position, kinematic_functions
+from .kinematics import inverse_derivatives, inverse_position, joint_state, kinematic_functions
 from .mapping import mapped
-from .plan import CPPlan
+from .plan import CPPlan, Node
 from .robot import Arm
 
 DEFAULT_POLES = (-10.0, -10.0, -10.0, -10.0)
@@ -80,14 +80,15 @@ class SimulationResult:
     tau: np.ndarray | None = None
 
 
-def _goal_error(plan: CPPlan, state: np.ndarray) -> float:
-    goal = plan.nodes[-1].state()[:6]
-    err = state - goal
+def goal_error(goal: Node, state: np.ndarray) -> float:
+    """Largest |error| of a third-link state (6,) against a goal node (theta modulo 2 pi)."""
+    err = state - goal.state()[:6]
     err[2] = (err[2] + np.pi) % (2 * np.pi) - np.pi
     return float(np.abs(err).max())
 
 
-def _cp(K: float, s: np.ndarray) -> np.ndarray:
+def cp_of(K: float, s: np.ndarray) -> np.ndarray:
+    """CP positions (N, 2) [m] of third-link poses s (N, >= 3)."""
     return s[:, :2] + K * np.column_stack([np.cos(s[:, 2]), np.sin(s[:, 2])])
 
 
@@ -97,14 +98,14 @@ def _result(plan, mode, t, states, tau=None) -> SimulationResult:
     )
     t = np.concatenate(t)
     states = np.concatenate(states)
-    err = np.linalg.norm(_cp(plan.arm.K, states) - ref, axis=1)
+    err = np.linalg.norm(cp_of(plan.arm.K, states) - ref, axis=1)
     return SimulationResult(
         mode=mode,
         t=t,
         state=states,
         cp_error=err,
         max_cp_error=float(err.max()),
-        final_state_error=_goal_error(plan, states[-1]),
+        final_state_error=goal_error(plan.nodes[-1], states[-1]),
         tau=None if tau is None else np.concatenate(tau),
     )
 
@@ -163,7 +164,8 @@ def _closed_loop_function(model: Arm, plant: Arm) -> ca.Function:
     return ca.Function("closed_loop", [X, Pd, gains], [Xdot, tau])
 
 
-def _pose_states(arm: Arm, X: np.ndarray) -> np.ndarray:
+def pose_states(arm: Arm, X: np.ndarray) -> np.ndarray:
+    """Third-link states (N, 6): pose and velocity of joint states X (N, >= 6)."""
     kin = kinematic_functions(arm)
     n = X.shape[0]
     s = np.asarray(mapped(kin["pose"], n)(X[:, :3].T)).T
@@ -172,10 +174,8 @@ def _pose_states(arm: Arm, X: np.ndarray) -> np.ndarray:
 
 
 def _initial_joint_state(plan: CPPlan, q_error) -> tuple[np.ndarray, np.ndarray]:
-    z0 = plan.nodes[0].state(after=True)
-    q = inverse_position(plan.arm, z0[0], z0[1], z0[2])
-    qd, _ = inverse_derivatives(plan.arm, q, z0[None, 3:6], np.zeros((1, 3)))
-    return q[0] + np.asarray(q_error, float), qd[0]
+    q, qd = joint_state(plan.arm, plan.nodes[0].state(after=True))
+    return q + np.asarray(q_error, float), qd
 
 
 def simulate_closed_loop(
@@ -221,7 +221,7 @@ def simulate_closed_loop(
         Pd = ph.curve.derivatives(t, 4)
         tau = np.asarray(mapped(f, t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
         ts.append(t)
-        states.append(_pose_states(plant or model, Xs))
+        states.append(pose_states(plant or model, Xs))
         taus.append(tau)
     return _result(plan, "closed_loop", ts, states, taus)
 
@@ -261,7 +261,7 @@ def simulate_open_loop(
         t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
         X = Xs[-1]
         ts.append(t)
-        states.append(_pose_states(plant or plan.arm, Xs))
+        states.append(pose_states(plant or plan.arm, Xs))
         taus.append(plan_torque(plan, k, t))
     return _result(plan, "open_loop", ts, states, taus)
 
