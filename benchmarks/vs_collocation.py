@@ -79,7 +79,7 @@ def _load(name: str, quick: bool, coefficients: int | None = None):
 
 def run_flat(problem, repeats: int, label: str) -> Row:
     """Solve with the flat optimizer ``repeats`` times; measure the last plan."""
-    from cpopt.optimize import optimize
+    from cpopt.flatopt import optimize
     from cpopt.simulate import simulate_open_loop
     from cpopt.trajectory import metrics, sample
 

@@ -3,19 +3,21 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from .kinematics import ReachError
 from .plan import CPPlan, SingularPlanError, closed_form
 from .problem import Problem
-from .results import Solution, SolverInfo
+from .results import Solution
 from .simulate import verify
+from .solver import SolverStats
 from .trajectory import metrics, sample
 
 
 def evaluate(
     plan: CPPlan,
     name: str,
-    solver: SolverInfo,
+    solver: SolverStats,
     status: str = "solved",
     samples: int = 401,
     poles=(-10.0, -10.0, -10.0, -10.0),
@@ -29,7 +31,7 @@ def evaluate(
         The plan.
     name : str
         Problem name.
-    solver : SolverInfo
+    solver : SolverStats
         How the plan was found.
     status : str
         The planner's status; kept unless it is ``solved`` and verification fails.
@@ -69,13 +71,46 @@ def evaluate(
     )
 
 
-def _collocation(problem: Problem) -> Solution:
+def plan_closed_form(problem: Problem) -> Solution:
+    """The paper's closed-form plan through the problem's nodes, verified."""
+    start = time.perf_counter()
+    try:
+        plan = closed_form(problem.arm, problem.nodes, problem.spec.closed_form.smooth_torque)
+    except SingularPlanError as err:
+        return Solution(
+            problem.name,
+            "singular",
+            "closed_form",
+            message=str(err),
+            solver=SolverStats(message=str(err)),
+        )
+    stats = SolverStats(solve_time_s=time.perf_counter() - start, message="closed form")
+    return _evaluate_for(problem, plan, stats, "solved", "")
+
+
+def plan_optimized(problem: Problem) -> Solution:
+    """The flat optimizer's plan (or its best iterate, with the failure's status), verified."""
+    from .flatopt import optimize
+
+    result = optimize(problem)
+    if result.plan is None:
+        return Solution(
+            problem.name,
+            result.status,
+            "optimize",
+            solver=result.solver,
+            message=result.solver.message,
+        )
+    return _evaluate_for(problem, result.plan, result.solver, result.status, result.solver.message)
+
+
+def plan_collocation(problem: Problem) -> Solution:
     """The collocation peer: warm start (optional), solve, sample, replay open loop."""
     from .collocation import collocate, joint_metrics, joint_trajectory, replay
 
     warm = None
     if problem.spec.collocation.warm_start == "flat":
-        from .optimize import optimize
+        from .flatopt import optimize
 
         warm = optimize(problem).plan
     result = collocate(problem, warm_start=warm)
@@ -102,6 +137,24 @@ def _collocation(problem: Problem) -> Solution:
     )
 
 
+def _evaluate_for(
+    problem: Problem, plan: CPPlan, stats: SolverStats, status: str, message: str
+) -> Solution:
+    """:func:`evaluate` with the problem's verification settings."""
+    verification = problem.spec.verification
+    return evaluate(
+        plan, problem.name, stats, status, verification.samples, verification.poles, message
+    )
+
+
+PLANNERS: dict[str, Callable[[Problem], Solution]] = {
+    "closed_form": plan_closed_form,
+    "optimize": plan_optimized,
+    "collocation": plan_collocation,
+}
+"""The planners by the name ``planner:`` gives in a problem file."""
+
+
 def solve(problem: Problem) -> Solution:
     """Solve a validated problem with its planner and verify the result.
 
@@ -110,43 +163,4 @@ def solve(problem: Problem) -> Solution:
     Solution
         Its ``status`` says whether it worked; failures never raise.
     """
-    spec = problem.spec
-    verification = spec.verification
-    if problem.planner == "collocation":
-        return _collocation(problem)
-    if problem.planner == "optimize":
-        from .optimize import optimize
-
-        result = optimize(problem)
-        if result.plan is None:
-            return Solution(
-                problem.name,
-                result.status,
-                "optimize",
-                solver=result.solver,
-                message=result.solver.message,
-            )
-        return evaluate(
-            result.plan,
-            problem.name,
-            result.solver,
-            result.status,
-            verification.samples,
-            verification.poles,
-            result.solver.message,
-        )
-    start = time.perf_counter()
-    try:
-        plan = closed_form(problem.arm, problem.nodes, spec.closed_form.smooth_torque)
-    except SingularPlanError as err:
-        return Solution(
-            problem.name,
-            "singular",
-            "closed_form",
-            message=str(err),
-            solver=SolverInfo(message=str(err)),
-        )
-    info = SolverInfo(
-        build_time_s=0.0, solve_time_s=time.perf_counter() - start, message="closed form"
-    )
-    return evaluate(plan, problem.name, info, "solved", verification.samples, verification.poles)
+    return PLANNERS[problem.planner](problem)

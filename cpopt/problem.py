@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -19,6 +20,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from . import flat
 from .kinematics import ReachError, inverse_derivatives, inverse_position
+from .limits import Limit, arm_limits
+from .nodes import free_value_names, gamma_is_free, node_values, si_bounds
+from .objectives import COLLOCATION_OBJECTIVES, OBJECTIVES, weights
 from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, Arm, Link
 
@@ -115,9 +119,6 @@ class LimitsSpec(_Spec):
     joint_velocity: Triple(Positive | None) | None = None
 
 
-OBJECTIVES = ("torque", "energy", "v_squared", "duration", "gamma_margin")
-
-
 class SolverSpec(_Spec):
     """Ipopt settings."""
 
@@ -135,8 +136,7 @@ class OptimizerSpec(_Spec):
     degree: Annotated[int, Field(ge=7, le=15)] = 8
     coefficients: Annotated[int, Field(ge=8, le=60)] = 14
     objective: (
-        Literal["torque", "energy", "v_squared", "duration", "gamma_margin"]
-        | dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]
+        Literal[OBJECTIVES] | dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]
     ) = "torque"
     gamma_min: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 2.0
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
@@ -209,6 +209,11 @@ class Problem:
         Start, via states and goal in SI units and radians (free values at their initial guess).
     spec : ProblemSpec
         The validated file content (planner and optimizer settings).
+    free : dict of str to (float, float)
+        The values the optimizer may choose, by name (:mod:`cpopt.nodes`), with their bounds in
+        SI units (+-inf for none).
+    limits : tuple of Limit
+        The arm's limits in SI units (``optimizer.limits``).
     """
 
     name: str
@@ -216,6 +221,13 @@ class Problem:
     arm: Arm
     nodes: tuple[Node, ...]
     spec: ProblemSpec
+    free: dict[str, tuple[float, float]]
+    limits: tuple[Limit, ...]
+
+    @cached_property
+    def values(self) -> dict[str, float]:
+        """Every node value by name in SI units (free values at their initial guess)."""
+        return node_values(self.nodes)
 
     @property
     def planner(self) -> str:
@@ -291,17 +303,6 @@ def _node(state: StateSpec, t: float) -> Node:
     )
 
 
-def free_value_names(spec: ProblemSpec) -> list[str]:
-    """All names a value can be freed by in ``optimizer.free``."""
-    names = ["duration"]
-    fields = ["x", "y", "theta_deg", "xdot", "ydot", "thetadot_deg", "xi", "eta"]
-    names += [f"start.{f}" for f in fields]
-    for i in range(len(spec.motion.via)):
-        names += [f"via[{i}].{f}" for f in [*fields, "eta_after", "t"]]
-    names += [f"goal.{f}" for f in fields]
-    return names
-
-
 def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...]]:
     a = spec.arm
     allowed = BRANCHES[a.kind]
@@ -348,7 +349,7 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
         except ReachError as err:
             raise ProblemError(source, path, f"state not reachable: {err}") from None
     free = spec.optimizer.free if spec.planner != "closed_form" else {}
-    names = free_value_names(spec)
+    names = free_value_names(len(spec.motion.via))
     for name, (lo, hi) in free.items():
         if name not in names:
             close = difflib.get_close_matches(name, names, n=1)
@@ -390,20 +391,16 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
             "optimizer.gamma_sign",
             f"give one sign per phase ({phases}), got {len(o.gamma_sign)}",
         )
-    weights = {o.objective: 1.0} if isinstance(o.objective, str) else o.objective
-    if weights.get("duration") and "duration" not in o.free:
+    if weights(o.objective).get("duration") and "duration" not in o.free:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
         )
 
 
-COLLOCATION_OBJECTIVES = ("torque", "duration", "gamma_margin")
-
-
 def _check_collocation(spec: ProblemSpec, source: str) -> None:
     o = spec.optimizer
-    weights = {o.objective: 1.0} if isinstance(o.objective, str) else o.objective
-    unsupported = sorted(k for k, w in weights.items() if w and k not in COLLOCATION_OBJECTIVES)
+    terms = weights(o.objective)
+    unsupported = sorted(k for k in terms if k not in COLLOCATION_OBJECTIVES)
     if unsupported:
         raise ProblemError(
             source,
@@ -412,15 +409,10 @@ def _check_collocation(spec: ProblemSpec, source: str) -> None:
             f"{', '.join(unsupported)} belongs to the flat optimizer (v is the CP's fourth "
             "derivative; |power| under piecewise-constant torques has no smooth transcription)",
         )
-    if weights.get("duration") and "duration" not in o.free:
+    if terms.get("duration") and "duration" not in o.free:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
         )
-
-
-def gamma_is_free(node: str, free: dict) -> bool:
-    """True when gamma at a node (``start``, ``via[i]``, ``goal``) depends on a freed value."""
-    return any(f"{node}.{v}" in free for v in ("xi", "theta_deg", "thetadot_deg"))
 
 
 def _check_gamma(arm, nodes, paths, free, source) -> None:
@@ -476,7 +468,13 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
         raise ProblemError(source, path, message) from None
     arm, nodes = _check_physics(spec, source)
     return Problem(
-        name=spec.name or name or "problem", source=source, arm=arm, nodes=nodes, spec=spec
+        name=spec.name or name or "problem",
+        source=source,
+        arm=arm,
+        nodes=nodes,
+        spec=spec,
+        free=si_bounds(spec.optimizer.free),
+        limits=arm_limits(spec.optimizer.limits, arm),
     )
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from . import __version__
 from .plan import CPPlan
 from .simulate import Verification
+from .solver import SolverStats
 from .trajectory import Metrics, Trajectory
 
 CSV_COLUMNS = (
@@ -37,27 +38,6 @@ STATUSES = (
     "verification_failed",
 )  # fmt: skip
 """Values of ``status``: only ``solved`` is a success."""
-
-
-@dataclass(frozen=True)
-class SolverInfo:
-    """How a plan was found: Ipopt iterations, build and solve times [s], message."""
-
-    iterations: int = 0
-    build_time_s: float = 0.0
-    solve_time_s: float = 0.0
-    message: str = ""
-    extra: dict = field(default_factory=dict)
-
-    def as_dict(self) -> dict:
-        """JSON-ready dict."""
-        return {
-            "iterations": self.iterations,
-            "build_time_s": self.build_time_s,
-            "solve_time_s": self.solve_time_s,
-            "message": self.message,
-            **self.extra,
-        }
 
 
 @dataclass(frozen=True)
@@ -80,7 +60,7 @@ class Solution:
         Figures of merit.
     verification : Verification or None
         Simulation errors.
-    solver : SolverInfo
+    solver : SolverStats
         Solver statistics.
     message : str
         What went wrong, for a status other than ``solved``.
@@ -93,7 +73,7 @@ class Solution:
     trajectory: Trajectory | None = None
     metrics: Metrics | None = None
     verification: Verification | None = None
-    solver: SolverInfo = SolverInfo()
+    solver: SolverStats = field(default_factory=SolverStats)
     message: str = ""
 
     @property

@@ -26,7 +26,7 @@ OPTIMIZED = (
 def measure(solution) -> dict:
     """The regression figures of one solved problem."""
     return {
-        "objective": solution.solver.extra["objective"],
+        "objective": solution.solver.objective,
         "torque_sq_integral": solution.metrics.torque_sq_integral,
         "duration_s": solution.plan.duration,
     }

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from cpopt.cli import main
-from cpopt.optimize import optimize
+from cpopt.flatopt import optimize
 from cpopt.pipeline import solve
 from cpopt.problem import load_problem, parse_problem
 from cpopt.trajectory import sample
@@ -51,12 +51,12 @@ def test_optimized_plans_are_verified_and_certified(optimized, name):
     assert v.open_loop.final_state_error < 1e-6  # exact torques replayed without feedback
     assert v.passive_torque_residual < 1e-9
     # certified between samples, exactly, and above gamma_min = 2 m/s^2
-    assert sol.solver.extra["certified_min_abs_gamma"] >= 2.0 * (1 - 1e-6)
+    assert sol.solver.details.certified_min_abs_gamma >= 2.0 * (1 - 1e-6)
     assert sol.metrics.min_abs_gamma >= 2.0 * (1 - 1e-6)
-    assert "exact minimum" in sol.solver.extra["certification"]
+    assert "exact minimum" in sol.solver.details.certification
     # the sampled objective is close to the same integral on the fine grid
-    if "torque" in sol.solver.extra["cost_terms"] and len(sol.solver.extra["cost_terms"]) == 1:
-        assert sol.solver.extra["objective"] == pytest.approx(
+    if "torque" in sol.solver.cost_terms and len(sol.solver.cost_terms) == 1:
+        assert sol.solver.objective == pytest.approx(
             sol.metrics.torque_sq_integral, rel=0.02
         )
 
@@ -99,9 +99,9 @@ def test_minimum_time_is_shorter_than_the_paper(optimized):
 
 
 def test_both_signs_tried_and_reported(optimized):
-    choices = optimized["swing_up_torque_limited"].solver.extra["sign_choices"]
-    assert {c["sign"] for c in choices} == {"positive", "negative"}
-    assert optimized["swing_up_torque_limited"].solver.extra["gamma_sign"] == "negative"
+    choices = optimized["swing_up_torque_limited"].solver.details.sign_choices
+    assert {c.sign for c in choices} == {"positive", "negative"}
+    assert optimized["swing_up_torque_limited"].solver.details.gamma_sign == "negative"
 
 
 INFEASIBLE = textwrap.dedent("""\
@@ -197,7 +197,7 @@ def test_energy_objective_lowers_the_energy(optimized):
     assert sol.metrics.abs_power_integral < 0.9 * torque_optimal  # 67.8 J vs 82.6 J
     # the epigraph objective is the integral of |power| on the 61 samples; the fine grid finds
     # 13 % more (60.2 J vs 67.8 J): |power| has kinks the sample quadrature under-weights
-    assert sol.solver.extra["objective"] == pytest.approx(60.16, rel=REL_TOL)
+    assert sol.solver.objective == pytest.approx(60.16, rel=REL_TOL)
     assert sol.metrics.abs_power_integral == pytest.approx(67.80, rel=REL_TOL)
 
 
@@ -213,7 +213,7 @@ def test_v_squared_objective_and_polynomial_curves(paper_solutions):
     assert sol.status == "solved", sol.message
     paper = paper_solutions["paper_swing_up"].trajectory
     paper_v2 = np.trapezoid((paper.cp[:, :, 4] ** 2).sum(axis=1), paper.t)
-    assert sol.solver.extra["objective"] < paper_v2
+    assert sol.solver.objective < paper_v2
     poly = _variant(curve="polynomial", degree=11)
     assert poly.status == "solved", poly.message
     assert 3000 < poly.metrics.torque_sq_integral < 12953  # fewer freedoms than the B-spline
@@ -226,6 +226,6 @@ def test_jit_compiled_solver_gives_the_same_optimum(tmp_path, monkeypatch):
     data["optimizer"]["solver"]["jit"] = True
     result = optimize(parse_problem(data))
     assert result.status == "solved"
-    assert result.solver.extra["objective"] == pytest.approx(
+    assert result.solver.objective == pytest.approx(
         TABLE["transfer_min_torque"]["objective"], rel=1e-6
     )

@@ -107,9 +107,9 @@ def test_eta_reset_at_via_state_is_verified():
     ]
     plan = closed_form(arm, nodes)
     from cpopt.pipeline import evaluate
-    from cpopt.results import SolverInfo
+    from cpopt.solver import SolverStats
 
-    sol = evaluate(plan, "reset", SolverInfo())
+    sol = evaluate(plan, "reset", SolverStats())
     assert sol.status == "solved"
     assert sol.verification.closed_loop.max_cp_error < 1e-8
     assert sol.verification.reduced.max_cp_error < 1e-8

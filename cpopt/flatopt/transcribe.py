@@ -1,0 +1,488 @@
+"""The flat optimizer's NLP, built once per problem structure and cached.
+
+Decision variables (:mod:`cpopt.flatopt.layout`): the inner B-spline coefficients of each CP
+coordinate in each phase, the node values freed in ``optimizer.free``, the compensator inputs
+alpha at the nodes where the fourth CP derivative is pinned, and the margin of the
+``gamma_margin`` objective. Fixed node values are solver parameters, so one solver serves every
+problem of the same structure.
+
+Boundary elimination: the first and last 4 coefficients of a phase (5 with ``smooth_torque``)
+are linear functions of the node values, so the boundary conditions hold exactly.
+
+Lifting: the CP derivatives of each sample are decision variables tied to the coefficients by
+linear constraints, and every sample-wise quantity (torques, joint motion, reach) goes through
+one small CasADi function of them (:mod:`cpopt.flatopt.samples`), mapped over the samples. The
+Hessian of the Lagrangian is then block diagonal (10 x 10 per sample).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from .. import flat
+from ..bspline import SplineBasis
+from ..limits import Limit
+from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..objectives import squared_norm, weights
+from ..problem import Problem
+from ..solver import ipopt_options
+from .layout import Layout
+from .samples import sample_function
+
+GAMMA_SAFETY = 2e-3
+"""Relative margin added to gamma_min on the sample grid (the exact certificate after the solve
+then rarely needs a refinement round)."""
+LIMIT_SAFETY = 2e-3
+"""Relative margin kept from torque and velocity limits on the sample grid."""
+REACH_EPS = {"RRR": 1e-4, "PRR": 1e-4, "RPR": 1e-4, "PPR": -1.0}
+"""Smallest reach margin [m] kept at the samples, per arm kind (a PPR gantry reaches anywhere)."""
+
+
+def coefficient_count(settings) -> int:
+    """Coefficients per CP coordinate per phase of an ``optimizer`` block."""
+    return settings.coefficients if settings.curve == "bspline" else settings.degree + 1
+
+
+@dataclass
+class Constraints:
+    """The NLP's constraints as they are assembled: expressions, bounds, and a label per row
+    (the constraint's name and where it sits: phase, normalised time)."""
+
+    exprs: list = field(default_factory=list)
+    lower: list = field(default_factory=list)
+    upper: list = field(default_factory=list)
+    rows: list = field(default_factory=list)
+
+    def add(self, expr, lo: float, hi, name: str, where: list) -> None:
+        """Append ``lo <= expr <= hi``; ``where`` labels each row, or all rows alike."""
+        self.exprs.append(expr)
+        k = int(expr.numel())
+        self.lower.extend([lo] * k)
+        self.upper.extend([hi] * k)
+        self.rows.extend((name, w) for w in (where if len(where) == k else where * k))
+
+
+@dataclass(frozen=True)
+class FlatNLP:
+    """A built NLP of the flat optimizer.
+
+    Attributes
+    ----------
+    solver : casadi.Function
+        Ipopt through ``nlpsol``.
+    layout : Layout
+        The core decision variables; lifted samples follow them in x.
+    p_names : list of str
+        The fixed node values that are parameters, in order.
+    lbg, ubg : numpy.ndarray
+        Constraint bounds.
+    rows : list
+        A label (name, (phase, s)) per constraint row.
+    unpack : casadi.Function
+        ``(x, p) -> (all node values, coefficients of each phase..., cost terms...)``.
+    lift : casadi.Function
+        ``(core x, p) -> lifted samples`` consistent with the core variables.
+    constraints : casadi.Function
+        ``(x, p) -> g``.
+    build_time : float
+        Seconds spent building [s].
+    """
+
+    solver: ca.Function
+    layout: Layout
+    p_names: list
+    lbg: np.ndarray
+    ubg: np.ndarray
+    rows: list
+    unpack: ca.Function
+    lift: ca.Function
+    constraints: ca.Function
+    build_time: float
+
+    def parameters(self, values: dict) -> np.ndarray:
+        """The solver's parameters from every node value by name (SI units)."""
+        return np.array([values[n] for n in self.p_names], float)
+
+    def complete(self, core: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """A whole decision vector: the core variables and the lifted samples they imply."""
+        core = np.asarray(core, float)[: self.layout.size]
+        return np.concatenate([core, np.asarray(self.lift(core, p)).ravel()])
+
+
+@dataclass
+class _Transcription:
+    """What the transcription of one NLP shares between its steps."""
+
+    problem: Problem
+    sign: int
+    holding: tuple
+    sym: dict
+    layout: Layout = field(default_factory=Layout)
+    g: Constraints = field(default_factory=Constraints)
+    alphas: dict = field(default_factory=dict)
+    margin: object = None
+    cost_terms: dict = field(default_factory=dict)
+    lifted: list = field(default_factory=list)
+    lifted_values: list = field(default_factory=list)
+    coefficients: list = field(default_factory=list)
+
+    @property
+    def settings(self):
+        return self.problem.spec.optimizer
+
+    @property
+    def flat(self) -> dict:
+        return flat.flat_functions(self.problem.arm.K, self.problem.arm.gravity)
+
+    @property
+    def names(self) -> list[str]:
+        return node_names(len(self.problem.nodes))
+
+    @property
+    def pinned(self) -> int:
+        """CP derivatives fixed at a node: 0..3, and the fourth too with ``smooth_torque``."""
+        return 5 if self.settings.smooth_torque else 4
+
+    @property
+    def basis(self) -> SplineBasis:
+        return SplineBasis(self.settings.degree, coefficient_count(self.settings))
+
+    @property
+    def times(self) -> list:
+        nm = self.names
+        return [ca.MX(0.0), *(self.sym[f"{v}.t"] for v in nm[1:-1]), self.sym["duration"]]
+
+    def node_state(self, i: int, after: bool) -> ca.MX:
+        """Node i's extended state z (8) as symbols, after its eta reset if ``after``."""
+        name = self.names[i]
+        values = [self.sym[f"{name}.{f}"] for f in NODE_FIELDS]
+        if after and name.startswith("via"):
+            values[-1] = self.sym[f"{name}.eta_after"]
+        return ca.vertcat(*values)
+
+    def depends_on_decisions(self, expr) -> bool:
+        return ca.depends_on(expr, self.layout.vector())
+
+
+def rest_ends(problem: Problem) -> list[bool]:
+    """Per node: a start or goal at rest whose velocities are not freed."""
+    names = node_names(len(problem.nodes))
+    out = []
+    for i, (name, node) in enumerate(zip(names, problem.nodes, strict=True)):
+        end = i in (0, len(problem.nodes) - 1)
+        fixed_still = all(
+            f"{name}.{f}" not in problem.free for f in ("xdot", "ydot", "thetadot_deg")
+        )
+        out.append(end and fixed_still and node.at_rest)
+    return out
+
+
+def holding_possible(problem: Problem, sign: int, index: int) -> bool:
+    """Can the rest end ``index`` sit at the holding torque (xi = 0, base still) with this sign?"""
+    name = node_names(len(problem.nodes))[index]
+    node = problem.nodes[index]
+    if f"{name}.theta_deg" in problem.free:
+        return False
+    if f"{name}.xi" not in problem.free and node.xi != 0:
+        return False
+    gamma_min = problem.spec.optimizer.gamma_min
+    return sign * problem.arm.gravity * np.sin(node.theta) >= max(gamma_min, 1e-3)
+
+
+def holding_pattern(problem: Problem, sign: int) -> tuple[bool, ...]:
+    """Per node: held at the holding torque (a rest end, ``smooth_torque``, and possible)."""
+    smooth = problem.spec.optimizer.smooth_torque
+    return tuple(
+        rest and smooth and holding_possible(problem, sign, i)
+        for i, rest in enumerate(rest_ends(problem))
+    )
+
+
+def _settings_key(problem: Problem) -> tuple:
+    o = problem.spec.optimizer
+    objective = o.objective if isinstance(o.objective, str) else tuple(sorted(o.objective.items()))
+    return (
+        o.curve,
+        o.degree,
+        o.coefficients,
+        objective,
+        o.gamma_min,
+        o.smooth_torque,
+        o.samples,
+        o.limits.model_dump_json(),
+        o.solver.model_dump_json(),  # Ipopt options are baked into the solver
+    )
+
+
+_CACHE: dict = {}
+
+
+def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
+    """Build (or fetch) the NLP for a problem structure, a sign of gamma and extra samples.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem; only its structure (arm, node count, freed names, settings) matters, its
+        fixed values are parameters of the returned solver.
+    sign : int
+        The sign of gamma, +1 or -1.
+    extra : tuple
+        Per phase, normalised times of samples added by refinement (or empty).
+    """
+    holding = holding_pattern(problem, sign)
+    key = (
+        problem.arm,
+        len(problem.nodes),
+        tuple(sorted(problem.free)),
+        sign,
+        extra,
+        holding,
+        _settings_key(problem),
+    )
+    if key not in _CACHE:
+        start = time.perf_counter()
+        sym = {n: ca.MX.sym(n) for n in problem.values}
+        tr = _Transcription(problem, sign, holding, sym)
+        _decisions(tr)
+        for k in range(len(problem.nodes) - 1):
+            _phase(tr, k, extra[k] if extra else ())
+        _holding_constraints(tr)
+        _whole_motion_terms(tr)
+        _CACHE[key] = _finish(tr, bool(extra), start)
+    return _CACHE[key]
+
+
+def _decisions(tr: _Transcription) -> None:
+    """The freed values, compensator inputs at pinned nodes and the margin variable."""
+    for name in tr.sym:
+        if name in tr.problem.free:
+            tr.layout.add(name, "value", tr.sym[name])
+    if tr.settings.smooth_torque:
+        for i in range(len(tr.problem.nodes)):
+            if tr.holding[i]:  # holding torque: alpha2 = 0 keeps the base still
+                a1 = tr.layout.add(f"alpha[{i}]", "alpha", ca.MX.sym(f"alpha1_{i}"))
+                tr.alphas[i] = ca.vertcat(a1, 0)
+            elif 0 < i < len(tr.problem.nodes) - 1:
+                tr.alphas[i] = tr.layout.add(f"alpha[{i}]", "alpha", ca.MX.sym(f"alpha_{i}", 2))
+    tr.cost_terms = {k: 0 for k in weights(tr.settings.objective)}
+    if "gamma_margin" in tr.cost_terms:
+        tr.margin = tr.layout.add("margin", "margin", ca.MX.sym("margin"))
+
+
+def _boundary_rows(tr: _Transcription, i: int, after: bool, h) -> ca.MX | None:
+    """CP derivatives at node i scaled to normalised time (pinned count x 2), or None when the
+    fourth derivative is to be pinned but this node has no compensator inputs."""
+    z = tr.node_state(i, after)
+    P = tr.flat["output"](z)
+    if tr.settings.smooth_torque:
+        if i not in tr.alphas:
+            return None
+        P = ca.horzcat(P, tr.flat["fourth"](z, tr.alphas[i]))
+    count = int(P.shape[1])
+    scale = ca.vertcat(*[h**r for r in range(count)])
+    return (P * ca.repmat(scale.T, 2, 1)).T
+
+
+def _unpinned_end(tr: _Transcription, k: int, i: int, after: bool, h, head: bool) -> list:
+    """An end whose fourth derivative is free: 4 eliminated coefficients and a free fifth."""
+    inverse = np.linalg.inv(tr.basis.end_matrices(4)[0 if head else 1])
+    z = tr.node_state(i, after)
+    scale = ca.vertcat(*[h**r for r in range(4)])
+    fixed = ca.mtimes(inverse, (tr.flat["output"](z) * ca.repmat(scale.T, 2, 1)).T)
+    n = coefficient_count(tr.settings)
+    rows = (4, 5) if head else (n - 5, n - 4)
+    label = "head" if head else "tail"
+    free = tr.layout.add(
+        f"phase[{k}].coefficients[{rows[0]}:{rows[1]}]",
+        "coefficients",
+        ca.MX.sym(f"c{k}_{label}", 1, 2),
+        phase=k,
+        rows=rows,
+    )
+    return [fixed, free] if head else [free, fixed]
+
+
+def _coefficients(tr: _Transcription, k: int, h) -> ca.MX:
+    """Phase k's coefficient matrix (n x 2): boundary rows eliminated, inner rows free."""
+    R = tr.pinned
+    n = coefficient_count(tr.settings)
+    if n < 2 * R:
+        raise ValueError(f"{n} coefficients cannot hold {R} boundary conditions at each end")
+    E0, E1 = (np.linalg.inv(E) for E in tr.basis.end_matrices(R))
+    head = _boundary_rows(tr, k, True, h)
+    tail = _boundary_rows(tr, k + 1, False, h)
+    parts = _unpinned_end(tr, k, k, True, h, True) if head is None else [ca.mtimes(E0, head)]
+    inner = tr.layout.add(
+        f"phase[{k}].coefficients[{R}:{n - R}]",
+        "coefficients",
+        ca.MX.sym(f"c{k}", n - 2 * R, 2),
+        phase=k,
+        rows=(R, n - R),
+    )
+    parts.append(inner)
+    if tail is None:
+        parts += _unpinned_end(tr, k, k + 1, False, h, False)
+    else:
+        parts.append(ca.mtimes(E1, tail))
+    return ca.vertcat(*parts)
+
+
+def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
+    """Everything of phase k: coefficients, samples, constraints and objective terms."""
+    times = tr.times
+    h = times[k + 1] - times[k]
+    C = _coefficients(tr, k, h)
+    tr.coefficients.append(C)
+    m = tr.settings.samples + (1 - tr.settings.samples % 2)  # odd, for Simpson's rule
+    s = np.r_[np.linspace(0.0, 1.0, m), np.asarray(extra, float)]
+    D = [ca.mtimes(tr.basis.matrix(s, r), C) / h**r for r in range(5)]  # each (len(s), 2)
+    # sample j's CP derivatives as the 2 x 5 block j of one 2 x 5N matrix, for the map
+    P_all = ca.reshape(ca.vertcat(*[d.T for d in D]), 2, 5 * len(s))
+    lifted = ca.MX.sym(f"P{k}", 2, 5 * len(s))
+    tr.lifted.append(ca.vec(lifted))
+    tr.lifted_values.append(ca.vec(P_all))
+    where = [(k, float(sj)) for sj in s]
+    tr.g.add(
+        ca.vec(lifted - P_all),
+        0,
+        0,
+        f"lifted samples (phase {k + 1})",
+        [w for w in where for _ in range(10)],
+    )
+    sample = sample_function(tr.problem.arm, tr.settings.solver.jit).map(len(s), "serial")
+    tau, q, qd, reach = sample(lifted, tr.sign)
+    _gamma_constraints(tr, k, C, h, s, m)
+    if tr.problem.arm.kind != "PPR":
+        tr.g.add(reach.T, REACH_EPS[tr.problem.arm.kind], ca.inf, f"reach (phase {k + 1})", where)
+    _limit_constraints(tr, {"tau": tau, "q": q, "qd": qd}, where)
+    quadrature = _simpson(m)
+    if "torque" in tr.cost_terms:
+        tr.cost_terms["torque"] += h * ca.dot(quadrature, squared_norm(tau[:, :m]).T)
+    if "energy" in tr.cost_terms:
+        _energy(tr, k, h, tau, qd, sample(P_all, tr.sign), s, m)
+    if "v_squared" in tr.cost_terms:
+        tr.cost_terms["v_squared"] += h * ca.dot(quadrature, squared_norm(D[4][:m, :].T).T)
+    _node_constraints(tr, k, h)
+
+
+def _simpson(m: int) -> np.ndarray:
+    """Simpson's weights on m (odd) equally spaced points of [0, 1]."""
+    w = np.ones(m)
+    w[1:-1:2], w[2:-1:2] = 4, 2
+    return w / (3 * (m - 1))
+
+
+def _gamma_constraints(tr: _Transcription, k: int, C, h, s: np.ndarray, m: int) -> None:
+    """|gamma| >= gamma_min on a grid 4 times finer than the samples (gamma is cheap: the norm
+    of a quantity linear in the coefficients)."""
+    g0 = tr.problem.arm.gravity
+    gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
+    s_gamma = np.r_[np.linspace(0.0, 1.0, 4 * (m - 1) + 1), s[m:]]
+    acc = ca.mtimes(tr.basis.matrix(s_gamma, 2), C) / h**2 + ca.repmat(
+        ca.DM([[0, g0]]), len(s_gamma), 1
+    )
+    tr.g.add(
+        ca.sum2(acc**2) - gmin**2,
+        0,
+        ca.inf,
+        f"|gamma| >= gamma_min (phase {k + 1})",
+        [(k, float(sj)) for sj in s_gamma],
+    )
+
+
+def _limit_constraints(tr: _Transcription, quantities: dict, where: list) -> None:
+    """The arm's limits at every sample (magnitude limits kept LIMIT_SAFETY inside)."""
+    limit: Limit
+    for limit in tr.problem.limits:
+        lo, hi = limit.bounds(LIMIT_SAFETY)
+        values = quantities[limit.quantity][limit.joint, :].T
+        tr.g.add(values, lo, hi, limit.label, where)
+
+
+def _energy(tr: _Transcription, k: int, h, tau, qd, consistent, s: np.ndarray, m: int) -> None:
+    """|tau_i q_i'| through its epigraph: slack >= +-power, exact and smooth for Ipopt."""
+    power = tau[:, :m] * qd[:2, :m]
+    slack = ca.MX.sym(f"e{k}", 2, m)
+    tau0, _, qd0, _ = consistent
+    tr.lifted.append(ca.vec(slack))
+    tr.lifted_values.append(ca.vec(ca.fabs(tau0[:, :m] * qd0[:2, :m])))
+    where = [(k, float(sj)) for sj in s[:m] for _ in range(2)]
+    tr.g.add(ca.vec(slack - power), 0, ca.inf, f"energy slack (phase {k + 1})", where)
+    tr.g.add(ca.vec(slack + power), 0, ca.inf, f"energy slack (phase {k + 1})", where)
+    tr.cost_terms["energy"] += h * ca.dot(_simpson(m), ca.sum1(slack).T)
+
+
+def _node_constraints(tr: _Transcription, k: int, h) -> None:
+    """The sign of gamma at the phase's nodes where it is free; a minimum phase duration."""
+    gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
+    for z, tn in ((tr.node_state(k, True), 0.0), (tr.node_state(k + 1, False), 1.0)):
+        gam = tr.flat["gamma"](z)
+        if tr.depends_on_decisions(gam):
+            tr.g.add(
+                tr.sign * gam - gmin, 0, ca.inf, f"sign(gamma) at node (phase {k + 1})", [(k, tn)]
+            )
+    if tr.depends_on_decisions(h):
+        tr.g.add(h, MIN_PHASE, ca.inf, f"phase {k + 1} duration >= {MIN_PHASE}", [(k, 0.0)])
+
+
+def _holding_constraints(tr: _Transcription) -> None:
+    """xi = 0 at held rest ends whose xi is free."""
+    for i, hold in enumerate(tr.holding):
+        name = tr.names[i]
+        if hold and f"{name}.xi" in tr.problem.free:
+            tr.g.add(
+                tr.sym[f"{name}.xi"], 0, 0, f"{name}: xi = 0 for the holding torque", [(0, 0.0)]
+            )
+
+
+def _whole_motion_terms(tr: _Transcription) -> None:
+    """Objective terms of the whole motion: its duration, the gamma margin (kept >= gamma_min)."""
+    if "duration" in tr.cost_terms:
+        tr.cost_terms["duration"] = tr.sym["duration"]
+    if "gamma_margin" in tr.cost_terms:
+        tr.cost_terms["gamma_margin"] = -tr.margin
+        tr.g.add(tr.margin, tr.settings.gamma_min, ca.inf, "gamma margin >= gamma_min", [(0, 0.0)])
+
+
+def _finish(tr: _Transcription, refinement: bool, start: float) -> FlatNLP:
+    """Assemble the NLP and its helper functions, create the solver."""
+    o = tr.settings
+    w = weights(o.objective)
+    cost = sum(w[k] * tr.cost_terms[k] for k in w)
+    x_core = tr.layout.vector()
+    x = ca.vertcat(x_core, *tr.lifted)
+    p_names = [n for n in tr.sym if n not in tr.problem.free]
+    p = ca.vertcat(*[tr.sym[n] for n in p_names])
+    g = ca.vertcat(*tr.g.exprs)
+    opts = {
+        # the first-round solver is expanded to SX (fast iterations, cached for reuse); the
+        # refinement rounds start warm and need few iterations, so a cheap MX build wins there
+        "expand": not refinement,
+        "print_time": False,
+        "show_eval_warnings": False,
+        "ipopt": ipopt_options(o.solver),
+    }
+    if o.solver.jit:
+        # compile the small per-sample function (and CasADi its derivatives) to C; compiling
+        # the whole expanded NLP takes gcc minutes, so the outer graph stays MX
+        opts["expand"] = False
+    solver = ca.nlpsol("flat", "ipopt", {"x": x, "p": p, "f": cost, "g": g}, opts)
+    values = ca.vertcat(*tr.sym.values())
+    outs = [values, *tr.coefficients, *[tr.cost_terms[k] for k in w]]
+    return FlatNLP(
+        solver=solver,
+        layout=tr.layout,
+        p_names=p_names,
+        lbg=np.array(tr.g.lower, float),
+        ubg=np.array(tr.g.upper, float),
+        rows=tr.g.rows,
+        unpack=ca.Function("unpack", [x, p], outs),
+        lift=ca.Function("lift", [x_core, p], [ca.vertcat(*tr.lifted_values)]),
+        constraints=ca.Function("constraints", [x, p], [g]),
+        build_time=time.perf_counter() - start,
+    )

@@ -1,0 +1,78 @@
+"""The flat optimizer's initial guess: the paper's closed form through the nodes, projected onto
+the B-spline basis.
+
+Where a node's guessed values give gamma the other sign than the one being solved for and its xi
+is free, xi is moved to the sign's side (gamma_min + 2 m/s^2 past zero). Where the closed form
+is singular (e.g. a swing-up with x_s = x_g, the paper's remark), its curve is used anyway with a
+lateral CP excursion K sin^2(pi s) added, which moves the guess off gamma = 0.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..bspline import SplineBasis, fit
+from ..nodes import node_names, nodes_from_values
+from ..plan import CPPlan, SingularPlanError, closed_form
+from ..problem import Problem
+from .transcribe import FlatNLP, coefficient_count
+
+
+def initial_plan(problem: Problem, sign: int) -> CPPlan:
+    """The closed-form plan through the nodes at their guessed values, xi moved where needed."""
+    arm = problem.arm
+    K, g0 = arm.K, arm.gravity
+    gamma_min = problem.spec.optimizer.gamma_min
+    values = problem.values
+    xis = {}
+    for name in node_names(len(problem.nodes)):
+        xi = values[f"{name}.xi"]
+        thetadot, theta = values[f"{name}.thetadot_deg"], values[f"{name}.theta_deg"]
+        gamma = xi - K * thetadot**2 + g0 * np.sin(theta)
+        if sign * gamma < gamma_min and f"{name}.xi" in problem.free:
+            xi += sign * (gamma_min + 2.0) - gamma
+        xis[name] = xi
+    nodes = nodes_from_values(values, len(problem.nodes), xis)
+    try:
+        return closed_form(arm, nodes)
+    except SingularPlanError:
+        return closed_form(arm, nodes, check=False)
+
+
+def fallback_excursion(plan: CPPlan) -> list[float]:
+    """Per phase, the amplitude [m] of the lateral CP excursion added to a singular closed form
+    (K where |gamma| gets below 0.1 m/s^2, else 0)."""
+    out = []
+    for ph in plan.phases:
+        value, _ = ph.curve.min_norm_of_acceleration_plus((0.0, plan.arm.gravity))
+        out.append(plan.arm.K if value < 0.1 else 0.0)
+    return out
+
+
+def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
+    """The whole initial decision vector: core variables and the lifted samples they imply."""
+    o = problem.spec.optimizer
+    plan = initial_plan(problem, sign)
+    n = coefficient_count(o)
+    basis = SplineBasis(o.degree, n)
+    coefficients = []
+    for ph, bump in zip(plan.phases, fallback_excursion(plan), strict=True):
+        C = fit(basis, ph.curve)
+        C[:, 0] += bump * np.sin(np.pi * np.linspace(0, 1, n)) ** 2
+        coefficients.append(C)
+    node_index = {name: i for i, name in enumerate(node_names(len(plan.nodes)))}
+    values = problem.values
+    core = []
+    for block in nlp.layout.blocks:
+        if block.kind == "value" and block.name.endswith(".xi"):
+            core.append(plan.nodes[node_index[block.name.split(".")[0]]].xi)
+        elif block.kind == "value":
+            core.append(values[block.name])
+        elif block.kind == "alpha":
+            core.extend([0.0] * block.size)
+        elif block.kind == "margin":
+            core.append(o.gamma_min)
+        else:
+            lo, hi = block.rows
+            core.extend(coefficients[block.phase][lo:hi].T.ravel())
+    return nlp.complete(np.asarray(core, float), nlp.parameters(values))

@@ -1,0 +1,159 @@
+"""The solver call shared by the planners: Ipopt's options from a problem's settings, Ipopt's
+return status mapped to cpopt's statuses, and typed solver statistics.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import casadi as ca
+import numpy as np
+
+IPOPT_STATUS = {
+    "Solve_Succeeded": "solved",
+    "Solved_To_Acceptable_Level": "solved",
+    "Infeasible_Problem_Detected": "infeasible",
+    "Maximum_Iterations_Exceeded": "max_iterations",
+    "Maximum_CpuTime_Exceeded": "max_iterations",
+}
+"""Ipopt's return status -> cpopt's status; any other return status is ``not_converged``."""
+
+
+def status_of(return_status: str) -> str:
+    """cpopt's status (``solved``, ``infeasible``, ...) for an Ipopt return status."""
+    return IPOPT_STATUS.get(return_status, "not_converged")
+
+
+def ipopt_options(settings, mu_strategy: bool = True) -> dict:
+    """Ipopt's own options from an ``optimizer.solver`` block (a ``SolverSpec``).
+
+    ``mu_strategy`` False leaves Ipopt's barrier update at its default (the collocation peer
+    has always run with it).
+    """
+    options = {
+        "print_level": settings.print_level,
+        "max_iter": settings.max_iter,
+        "tol": settings.tol,
+        "sb": "yes",
+    }
+    if mu_strategy:
+        options["mu_strategy"] = settings.mu_strategy
+    return options
+
+
+class PlannerDetails(Protocol):
+    """What a planner reports beyond the common statistics (typed per planner)."""
+
+    def as_dict(self) -> dict:
+        """JSON-ready figures, merged into ``solution.json``'s ``solver`` entry."""
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """How a plan was found.
+
+    Attributes
+    ----------
+    iterations : int
+        Ipopt iterations over every solve the planner ran.
+    build_time_s, solve_time_s : float
+        Time spent building the NLP and in the solver [s].
+    message : str
+        What the solver said, in one line.
+    objective : float or None
+        The objective at the returned plan (optimizing planners).
+    cost_terms : mapping of str to float
+        Each objective term's value, by name, before weighting.
+    violations : tuple of str
+        Constraints the returned plan violates, the worst place of each by name and time.
+    details : PlannerDetails or None
+        The planner's own figures (sign of gamma, certificate, intervals, ...).
+    """
+
+    iterations: int = 0
+    build_time_s: float = 0.0
+    solve_time_s: float = 0.0
+    message: str = ""
+    objective: float | None = None
+    cost_terms: Mapping[str, float] = field(default_factory=dict)
+    violations: tuple[str, ...] = ()
+    details: PlannerDetails | None = None
+
+    def as_dict(self) -> dict:
+        """The ``solver`` entry of ``solution.json``."""
+        out = {
+            "iterations": self.iterations,
+            "build_time_s": self.build_time_s,
+            "solve_time_s": self.solve_time_s,
+            "message": self.message,
+        }
+        if self.objective is not None:
+            out.update(objective=self.objective, cost_terms=dict(self.cost_terms))
+        if self.details is not None:
+            out.update(self.details.as_dict(), violations=list(self.violations))
+        return out
+
+
+@dataclass(frozen=True)
+class NlpRun:
+    """One call of an NLP solver.
+
+    Attributes
+    ----------
+    x : numpy.ndarray
+        The returned decision vector (the best iterate when the solve failed).
+    objective : float
+        The objective there.
+    return_status : str
+        Ipopt's own word.
+    status : str
+        cpopt's status (:func:`status_of`).
+    iterations : int
+        Ipopt iterations.
+    solve_time_s : float
+        Wall time of the call [s].
+    """
+
+    x: np.ndarray
+    objective: float
+    return_status: str
+    status: str
+    iterations: int
+    solve_time_s: float
+
+
+def read_stats(stats: Mapping) -> tuple[str, str, int]:
+    """(Ipopt's return status, cpopt's status, iterations) from a CasADi stats dict."""
+    ipopt = str(stats.get("return_status", "unknown"))
+    return ipopt, status_of(ipopt), int(stats.get("iter_count", 0))
+
+
+def run_nlp(solver: ca.Function, **arguments) -> NlpRun:
+    """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg)."""
+    start = time.perf_counter()
+    solution = solver(**arguments)
+    elapsed = time.perf_counter() - start
+    ipopt, status, iterations = read_stats(solver.stats())
+    return NlpRun(
+        x=np.asarray(solution["x"]).ravel(),
+        objective=float(solution["f"]),
+        return_status=ipopt,
+        status=status,
+        iterations=iterations,
+        solve_time_s=elapsed,
+    )
+
+
+__all__ = [
+    "IPOPT_STATUS",
+    "NlpRun",
+    "PlannerDetails",
+    "SolverStats",
+    "ipopt_options",
+    "read_stats",
+    "run_nlp",
+    "status_of",
+]
