@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from .kinematics import ReachError
 from .plan import CPPlan, SingularPlanError, closed_form
@@ -103,13 +104,24 @@ def _collocation(problem: Problem) -> Solution:
 
 
 def solve(problem: Problem) -> Solution:
-    """Solve a validated problem with its planner and verify the result.
+    """Solve a validated problem with its planner, verify the result and, when the problem
+    has a ``tracking`` block, track the solved plan on its plant.
 
     Returns
     -------
     Solution
         Its ``status`` says whether it worked; failures never raise.
     """
+    solution = _planned(problem)
+    if problem.spec.tracking is not None and solution.ok:
+        from .tracking import track_problem
+
+        solution = replace(solution, tracking=track_problem(problem, solution.plan))
+    return solution
+
+
+def _planned(problem: Problem) -> Solution:
+    """Plan with the problem's planner and verify (the solve without tracking)."""
     spec = problem.spec
     verification = spec.verification
     if problem.planner == "collocation":

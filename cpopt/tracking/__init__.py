@@ -11,7 +11,7 @@
 
 from .outcome import CSV_COLUMNS, Tolerance, TrackingOutcome
 from .plant import Plant
-from .run import CONTROLLERS, make_controller, track
+from .run import CONTROLLERS, TrackingRefused, make_controller, track, track_problem
 from .simulation import Noise
 
 __all__ = [
@@ -21,6 +21,8 @@ __all__ = [
     "Plant",
     "Tolerance",
     "TrackingOutcome",
+    "TrackingRefused",
     "make_controller",
     "track",
+    "track_problem",
 ]

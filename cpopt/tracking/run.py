@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from ..robot import Arm
 from .controller import Controller
-from .dfl import DEFAULT_POLES, DFLController
+from .dfl import DEFAULT_POLES, DFLController, SingularTrackingError
 from .outcome import FinalErrors, Tolerance, TrackingOutcome, final_errors
 from .plant import Plant
 from .reference import Reference, reference
@@ -94,3 +96,41 @@ def track(
         final=final_errors(ref.arm, ref.goal, log["x"][-1:]),
         tolerance=tolerance or Tolerance(),
     )
+
+
+@dataclass(frozen=True)
+class TrackingRefused:
+    """A controller that cannot follow the plan (dfl where gamma crosses zero), and why."""
+
+    controller: str
+    message: str
+
+    def summary(self) -> dict:
+        """The ``tracking`` entry of ``solution.json``: not a success, with the reason."""
+        return {"controller": self.controller, "success": False, "error": self.message}
+
+
+def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
+    """Track a plan as the problem's ``tracking`` block asks (see docs/problems.md).
+
+    The plant's torque limits are ``tracking.plant.torque_limit``, else the problem's
+    ``optimizer.limits.torque``; its links are the arm's with the block's overrides.
+    """
+    from dataclasses import replace
+
+    from ..problem import plant_links
+
+    spec = problem.spec.tracking
+    limit = spec.plant.torque_limit or problem.spec.optimizer.limits.torque
+    plant = Plant(
+        arm=replace(plan.arm, links=tuple(plant_links(problem.spec))),
+        viscous=tuple(spec.plant.friction.viscous),
+        coulomb=tuple(spec.plant.friction.coulomb),
+        torque_limit=None if all(v is None for v in limit) else tuple(limit),
+    )
+    noise = Noise(tuple(spec.noise.position), tuple(spec.noise.velocity), spec.noise.seed)
+    gains = {"Q": spec.Q, "R": spec.R, "Qf": spec.Qf, "poles": spec.poles}
+    try:
+        return track(plan, spec.controller, plant, noise, spec.rate_hz, **gains)
+    except SingularTrackingError as err:
+        return TrackingRefused(spec.controller, str(err))
