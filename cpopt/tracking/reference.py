@@ -108,13 +108,20 @@ def reference(plan, rate_hz: float) -> Reference:
     return joint_reference(plan, rate_hz)
 
 
-def _flat_samples(plan: CPPlan, t: np.ndarray) -> dict:
-    """CP derivatives, states, joint motion and torques of a flat plan at sorted times t."""
+def _phase_at(plan: CPPlan, t: np.ndarray) -> np.ndarray:
+    """Index of the phase each time belongs to (right-continuous: a node starts a phase)."""
+    starts = np.array([ph.curve.t0 for ph in plan.phases])
+    return np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(plan.phases) - 1)
+
+
+def _flat_samples(plan: CPPlan, t: np.ndarray, phase: np.ndarray | None = None) -> dict:
+    """CP derivatives, states, joint motion and torques of a flat plan at sorted times t, on
+    the given phases (by default the phase of each time; a phase's curve is held at its end
+    beyond it)."""
     arm = plan.arm
     K, g0 = arm.K, arm.gravity
     t = np.clip(t, plan.t0, plan.nodes[-1].t)
-    starts = np.array([ph.curve.t0 for ph in plan.phases])
-    phase = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(plan.phases) - 1)
+    phase = _phase_at(plan, t) if phase is None else phase
     P = np.zeros((t.size, 2, 5))
     z = np.zeros((t.size, 8))
     for i, ph in enumerate(plan.phases):
@@ -140,7 +147,8 @@ def flat_reference(plan: CPPlan, rate_hz: float) -> Reference:
     inner = (t[:-1, None] + period * (nodes[None, :] + 1) / 2).ravel()
     inside = _flat_samples(plan, inner)
     tau_mean = np.einsum("knj,n->kj", inside["tau"].reshape(-1, nodes.size, 2), weights / 2)
-    middle = nodes.size // 2  # the Gauss node at 0
+    # the middle of each period on the phase of its start: a reset takes effect at an instant
+    middle = _flat_samples(plan, t[:-1] + period / 2, _phase_at(plan, t[:-1]))
     resets = np.zeros((t.size, 2))
     for node in plan.nodes[1:-1]:
         k = min(int(np.searchsorted(t, node.t - 1e-12)), t.size - 1)
@@ -152,9 +160,9 @@ def flat_reference(plan: CPPlan, rate_hz: float) -> Reference:
         x=np.column_stack([at["q"], at["qd"]]),
         tau=at["tau"],
         tau_mean=tau_mean,
-        tau_mid=inside["tau"].reshape(-1, nodes.size, 2)[:, middle],
+        tau_mid=middle["tau"],
         cp=at["P"],
-        cp_mid=inside["P"].reshape(-1, nodes.size, 2, 5)[:, middle],
+        cp_mid=middle["P"],
         compensator=at["z"][:, 6:8],
         resets=resets,
         goal=plan.nodes[-1],
@@ -216,12 +224,14 @@ def _cp_and_compensator(arm: Arm, x: np.ndarray, tau: np.ndarray):
     return P, compensator, gamma
 
 
-def _joint_states(plan, t: np.ndarray):
+def _joint_states(plan, t: np.ndarray, j: np.ndarray | None = None):
     """Joint states (N, 6), torques (N, 2) and interval indices (N,) of a collocation plan at
-    times t: the model integrated from the last knot under that knot's torque."""
+    times t: the model integrated from the start of interval j (by default the one holding
+    t) under that interval's torque."""
     knots = np.asarray(plan.knots, float)
     tc = np.clip(t, knots[0], knots[-1])
-    j = np.clip(np.searchsorted(knots, tc, side="right") - 1, 0, len(plan.tau) - 1)
+    if j is None:
+        j = np.clip(np.searchsorted(knots, tc, side="right") - 1, 0, len(plan.tau) - 1)
     start = np.column_stack([plan.q[j], plan.qd[j]])
     x = np.asarray(mapped(_advance(plan.arm), t.size)(start.T, plan.tau[j].T, tc - knots[j])).T
     return x, plan.tau[j], j
@@ -233,7 +243,7 @@ def joint_reference(plan, rate_hz: float) -> Reference:
     knots = np.asarray(plan.knots, float)
     t, period = control_grid(knots[0], knots[-1] - knots[0], rate_hz)
     x, tau, j = _joint_states(plan, t)
-    x_mid, tau_mid, _ = _joint_states(plan, t[:-1] + period / 2)
+    x_mid, tau_mid, _ = _joint_states(plan, t[:-1] + period / 2, j[:-1])
     tc = np.clip(t, knots[0], knots[-1])
     cumulative = np.concatenate([[[0.0, 0.0]], np.cumsum(np.diff(knots)[:, None] * plan.tau, 0)])
     integral = np.column_stack([np.interp(tc, knots, cumulative[:, i]) for i in range(2)])

@@ -118,3 +118,29 @@ def run_trials(
         final_cp_error=final.cp,
         diverged=batch.diverged,
     )
+
+
+MASS_PARAMETERS = (1, 3, 5, 7)
+"""Masses and inertias of links 1 and 2 in the parameter vector: scaled together, a link
+stays a uniform rod of another mass."""
+
+
+def mass_margin(
+    controller: Controller,
+    nominal: np.ndarray,
+    noise: Noise,
+    largest: float = 0.5,
+    step: float = 0.01,
+    tolerance: Tolerance | None = None,
+    jit: bool = True,
+) -> tuple[float, float]:
+    """The largest mass error of links 1 and 2 (both heavier, both lighter) a controller
+    survives: every error from 0 up to it succeeds, in steps of ``step`` (fractions)."""
+    errors = np.arange(step, largest + step / 2, step)
+    factors = np.concatenate([1 + errors, 1 - errors])
+    rows = np.tile(nominal, (factors.size, 1))
+    rows[:, list(MASS_PARAMETERS)] *= factors[:, None]
+    ok = run_trials(controller, rows, noise, tolerance, jit).success.reshape(2, -1)
+    # the number of leading successes on each side gives the margin
+    survived = [int(np.argmin(side)) if not side.all() else side.size for side in ok]
+    return tuple(float(n * step) for n in survived)
