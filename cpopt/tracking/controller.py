@@ -33,6 +33,7 @@ class Controller(ABC):
     def __init__(self, reference: Reference) -> None:
         self.reference = reference
         self._state = self.initial_state()
+        self._compiled: tuple | None = None  # law and schedule, built at the first torque()
 
     @property
     def period(self) -> float:
@@ -63,10 +64,9 @@ class Controller(ABC):
         """
         ref = self.reference
         k = int(np.clip(round((t - ref.t[0]) / ref.period), 0, ref.steps))
-        if not hasattr(self, "_schedule"):
-            self._schedule = self.schedule()
-            self._law = self.law()
-        tau, c = self._law(self._schedule[:, k], np.asarray(q, float), np.asarray(qd, float),
-                           self._state)  # fmt: skip
+        if self._compiled is None:
+            self._compiled = (self.law(), self.schedule())
+        law, schedule = self._compiled
+        tau, c = law(schedule[:, k], np.asarray(q, float), np.asarray(qd, float), self._state)
         self._state = np.asarray(c).ravel()
         return np.asarray(tau).ravel()

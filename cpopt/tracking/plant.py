@@ -32,8 +32,9 @@ its level (99.9 % at four times it). The bundled plans move their joints at metr
 per second, so the smoothing acts only around velocity reversals."""
 
 SUBSTEPS = 2
-"""RK4 steps of the plant per control period (0.5 ms at 1 kHz: the integration error of a
-period is ~1e-12 on the bundled plans, far below the tracking errors measured)."""
+"""RK4 steps of the plant per control period (0.5 ms at 1 kHz). Measured against DOP853 along
+the paper's plans, the state error of one period is at most 2e-10 on the swing-up and 1e-13 on
+the transfer (3e-9 and 2e-12 with one step), far below the tracking errors."""
 
 LINK_FIELDS = ("length", "mass", "com", "inertia")
 PARAMETER_NAMES = (

@@ -28,11 +28,20 @@ from .controller import Controller
 from .reference import Reference
 
 DEFAULT_Q = (100.0, 100.0, 100.0, 1.0, 1.0, 1.0)
-"""Diagonal of Q on (q1, q2, q3 [rad or m], q1dot, q2dot, q3dot [rad/s or m/s])."""
+"""Diagonal of Q on (q1, q2, q3 [rad or m], q1dot, q2dot, q3dot [rad/s or m/s]).
+
+Chosen by measurement on the 12 bundled plans at 1 kHz (the benchmark plant of
+:mod:`cpopt.tracking.robustness`, 21-step sweeps and 50 Monte Carlo plants each, Qf = Q):
+with R = 1e-4 these weights succeed in every sweep and Monte Carlo run, median final CP error
+2.6e-3 m, and follow every plan on the model within 2.2e-5 m. Weaker feedback fails on the
+heavy transfer arm (R = 1e-3: 0 % on paper_transfer, mean 75 %; R = 1e-2: mean 19 % of the
+sweeps); stronger feedback (R = 1e-5, or Q = 1000 on positions with 10 on velocities) keeps
+100 % but is too fast for a 1 kHz hold (errors on the model up to 1.4e-3 m); more velocity
+weight (10) or less (0.1) loses Monte Carlo runs (mean 81 % and 92 %)."""
 DEFAULT_R = (1e-4, 1e-4)
-"""Diagonal of R on (tau1, tau2) [1/(N m)^2 or 1/N^2]."""
-DEFAULT_QF = (100.0, 100.0, 100.0, 1.0, 1.0, 1.0)
-"""Diagonal of the terminal weight Qf on the joint state."""
+"""Diagonal of R on (tau1, tau2) [1/(N m)^2 or 1/N^2] (see :data:`DEFAULT_Q`)."""
+DEFAULT_QF = DEFAULT_Q
+"""Diagonal of the terminal weight Qf on the joint state (see :data:`DEFAULT_Q`)."""
 
 
 @lru_cache(maxsize=16)
