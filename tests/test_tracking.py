@@ -23,6 +23,7 @@ from cpopt.tracking.dfl import SingularTrackingError
 from cpopt.tracking.plant import PARAMETER_NAMES, plant_period
 from cpopt.tracking.reference import reference
 from cpopt.tracking.run import make_controller
+from cpopt.tracking.simulation import simulate_batch
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -99,6 +100,17 @@ def test_tvlqr_beats_dfl_with_links_one_and_two_5_percent_heavier(transfer):
     assert lqr.max_cp_error == pytest.approx(0.0188, rel=0.15)
     assert dfl.max_cp_error == pytest.approx(0.0434, rel=0.15)
     assert lqr.success and not dfl.success
+
+
+def test_a_batch_runs_each_plant_as_if_alone(transfer):
+    """One mapped call over different plants gives each run its own parameters."""
+    plan, ref = transfer
+    controller = make_controller("tvlqr", ref)
+    plants = [_heavier(plan.arm, e) for e in (0.0, 0.05, -0.1)]
+    batch = simulate_batch(controller, np.array([p.parameters() for p in plants]))
+    alone = [track(None, controller, p).max_cp_error for p in plants]
+    np.testing.assert_allclose(batch.max_cp_error, alone, rtol=1e-9)
+    assert alone[2] > 2 * alone[1] > 4 * alone[0]
 
 
 def test_friction_noise_and_saturation_each_show(transfer):

@@ -196,8 +196,10 @@ def simulate_batch(
     for k0 in range(0, n, CHUNK):
         length, A = min(CHUNK, n - k0), active.size
         f = _batch_function(step, length, A)
+        # per-period inputs run after run: each run's parameters repeated over its periods
+        params = np.repeat(P[:, active], length, axis=1)
         out = f(X[:, active], c[:, active], schedule[:, k0 : k0 + length],
-                _noise_block(noise, active, rngs, length), P[:, active])  # fmt: skip
+                _noise_block(noise, active, rngs, length), params)  # fmt: skip
         X_next, c_next, tau, qdd, cp, sat = (
             np.asarray(o).reshape(o.shape[0], A, length) for o in out
         )
