@@ -160,18 +160,7 @@ def test_controllers_follow_a_collocation_plan(collocation_plans):
     assert track(None, make_controller("tvlqr", unconstrained)).max_cp_error < 2e-5
 
 
-GOOD = textwrap.dedent("""\
-    name: tracked
-    arm:
-      kind: RRR
-      links:
-        - {length: 1.5, mass: 10.0}
-        - {length: 1.5, mass: 5.0}
-        - {length: 1.0, mass: 1.0}
-    motion:
-      duration: 1.0
-      start: {x: 0.75, y: 1.0, theta_deg: 90}
-      goal: {x: 1.75, y: 1.0, theta_deg: 90}
+TRACKING = textwrap.dedent("""\
     tracking:
       controller: tvlqr
       rate_hz: 500
@@ -188,7 +177,9 @@ GOOD = textwrap.dedent("""\
 
 
 def _data():
-    return yaml.safe_load(GOOD)
+    """The paper's transfer with a tracking block that sets every key."""
+    data = yaml.safe_load((ROOT / "problems" / "paper_transfer.yaml").read_text())
+    return {**data, "name": "tracked", **yaml.safe_load(TRACKING)}
 
 
 def test_the_tracking_block_builds_the_plant():
@@ -255,7 +246,7 @@ def test_dfl_on_an_unconstrained_collocation_plan_is_refused_at_load():
 
 def test_solve_writes_tracking_outputs(tmp_path, capsys):
     file = tmp_path / "tracked.yaml"
-    file.write_text(GOOD)
+    file.write_text(yaml.safe_dump(_data()))
     assert main(["solve", str(file), "--out", str(tmp_path / "out"), "--plot"]) == 0
     out = tmp_path / "out" / "tracked"
     doc = json.loads((out / "solution.json").read_text())["tracking"]
