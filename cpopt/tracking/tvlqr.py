@@ -30,15 +30,21 @@ from .reference import Reference
 DEFAULT_Q = (100.0, 100.0, 100.0, 1.0, 1.0, 1.0)
 """Diagonal of Q on (q1, q2, q3 [rad or m], q1dot, q2dot, q3dot [rad/s or m/s]).
 
-Chosen by measurement on the 12 bundled plans at 1 kHz (the benchmark plant of
-:mod:`cpopt.tracking.robustness`, 21-step sweeps and 50 Monte Carlo plants each, Qf = Q):
-with R = 1e-4 these weights succeed in every sweep and Monte Carlo run, median final CP error
-2.6e-3 m, and follow every plan on the model within 2.2e-5 m. Weaker feedback fails on the
-heavy transfer arm (R = 1e-3: 0 % on paper_transfer, mean 75 %; R = 1e-2: mean 19 % of the
-sweeps); stronger feedback (R = 1e-5, or Q = 1000 on positions with 10 on velocities) keeps
-100 % but is too fast for a 1 kHz hold (errors on the model up to 1.4e-3 m); more velocity
-weight (10) or less (0.1) loses Monte Carlo runs (mean 81 % and 92 %)."""
-DEFAULT_R = (1e-4, 1e-4)
+Chosen with :data:`DEFAULT_R` by measurement at 1 kHz on six bundled plans (the two paper
+transfers' fast one, the paper's and the PRR swing-ups, the minimum-time, torque-limited and
+minimum-torque-transfer plans) on the benchmark plant of :mod:`cpopt.tracking.robustness`,
+21-step sweeps and 30 Monte Carlo plants each, Qf = Q. Success in sweeps / Monte Carlo:
+
+* R = 3e-5 (the default): 0.83-0.92 / 0.23-0.60, every plan followed on the model within
+  2e-5 m;
+* R = 1e-4: 0.81-0.91 / 0.17-0.57; R = 1e-3: 0 % on the heavy transfer arm;
+* R = 1e-5: 0.84-0.93 / 0.27-0.70, but too fast for a 1 kHz hold on the PRR swing-up
+  (1e-3 m on the model), as are Q = 1000 on positions with 10 on velocities (2e-2 m) and a
+  velocity weight of 3 (2e-3 to 5e-3 m);
+* a terminal weight 100 times Q helps the paper's swing-up and hurts the minimum-time and
+  torque-limited plans (0.03 and 0.13 in Monte Carlo).
+"""
+DEFAULT_R = (3e-5, 3e-5)
 """Diagonal of R on (tau1, tau2) [1/(N m)^2 or 1/N^2] (see :data:`DEFAULT_Q`)."""
 DEFAULT_QF = DEFAULT_Q
 """Diagonal of the terminal weight Qf on the joint state (see :data:`DEFAULT_Q`)."""
