@@ -293,3 +293,15 @@ def test_quick_benchmark_prints_robust_lines():
         assert match, line
         rates[match[1]] = float(match[2]), float(match[3])
     assert rates["tvlqr"] > rates["dfl"]  # measured: tvlqr 0.852 and 0.6, dfl 0 and 0
+
+
+def test_a_diverging_run_stops_and_says_when():
+    """The sampled dfl on the paper's swing-up with links 1 and 2 10 % heavier: the CP leaves
+    the plan by more than 1 m (measured at t = 1.075 s) and the run stops there."""
+    problem = load_problem(ROOT / "problems" / "paper_swing_up.yaml")
+    plan = closed_form(problem.arm, problem.nodes)
+    out = track(plan, "dfl", _heavier(plan.arm, 0.1))
+    assert out.diverged_at == pytest.approx(1.075, abs=0.05)
+    assert out.t[-1] == out.diverged_at and out.tau.shape == (out.t.size - 1, 2)
+    assert out.cp_error[-1] > 1.0 and not out.success
+    assert out.summary()["diverged_at"] == out.diverged_at

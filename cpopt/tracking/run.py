@@ -7,10 +7,10 @@ from dataclasses import dataclass
 from ..robot import Arm
 from .controller import Controller
 from .dfl import DEFAULT_POLES, DFLController, SingularTrackingError
-from .outcome import FinalErrors, Tolerance, TrackingOutcome, final_errors
+from .outcome import Tolerance, TrackingOutcome, final_errors
 from .plant import Plant
 from .reference import Reference, reference
-from .simulation import Batch, Noise, simulate_batch
+from .simulation import Noise, simulate_batch
 from .tvlqr import DEFAULT_Q, DEFAULT_QF, DEFAULT_R, TVLQRController
 
 CONTROLLERS = ("tvlqr", "dfl")
@@ -37,12 +37,6 @@ def make_controller(
 def model_plant(arm: Arm, torque_limit=None) -> Plant:
     """The plant equal to the model: no friction, saturation at ``torque_limit`` if given."""
     return Plant(arm, torque_limit=None if torque_limit is None else tuple(torque_limit))
-
-
-def batch_errors(controller: Controller, batch: Batch) -> FinalErrors:
-    """:class:`FinalErrors` of every run of a batch against the plan's goal."""
-    ref = controller.reference
-    return final_errors(ref.arm, ref.goal, batch.x_final)
 
 
 def track(

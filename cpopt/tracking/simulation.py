@@ -156,6 +156,27 @@ def _noise_block(noise: Noise, runs: np.ndarray, rngs: list, length: int) -> np.
     return np.hstack([(rngs[i].standard_normal((length, 6)) * std).T for i in runs])
 
 
+class _Totals:
+    """Per-run figures accumulated chunk by chunk (N runs)."""
+
+    def __init__(self, runs: int) -> None:
+        self.max_err = np.zeros(runs)
+        self.diverged_at = np.full(runs, np.nan)
+        self.peak = np.zeros((runs, 2))
+        self.saturated = np.zeros(runs)
+
+    def add(self, active, upto, bad, cp_err, tau, sat, t_after) -> None:
+        """Fold in one chunk: ``upto[a]`` periods of active run a count; t_after (length,)
+        are the instants that end the chunk's periods."""
+        for a, i in enumerate(active):
+            m = upto[a]
+            self.max_err[i] = max(self.max_err[i], cp_err[a, :m].max())
+            self.peak[i] = np.maximum(self.peak[i], np.abs(tau[:, a, :m]).max(axis=1))
+            self.saturated[i] += sat[0, a, :m].sum()
+            if bad[a] >= 0:
+                self.diverged_at[i] = t_after[bad[a]]
+
+
 def simulate_batch(
     controller: Controller,
     parameters: np.ndarray,
@@ -188,10 +209,7 @@ def simulate_batch(
     X = np.tile(ref.x[0][:, None], (1, N))
     c = np.tile(controller.initial_state()[:, None], (1, N))
     active = np.arange(N)
-    max_err = np.zeros(N)
-    diverged_at = np.full(N, np.nan)
-    peak = np.zeros((N, 2))
-    saturated = np.zeros(N)
+    totals = _Totals(N)
     logs: dict[str, list] = {k: [] for k in ("x", "qdd", "tau", "saturated", "cp")}
     for k0 in range(0, n, CHUNK):
         length, A = min(CHUNK, n - k0), active.size
@@ -206,37 +224,35 @@ def simulate_batch(
         cp_err = np.linalg.norm(cp - ref.cp[k0 : k0 + length, :, 0].T[:, None, :], axis=0)
         bad = _first_bad(X_next, cp_err)
         upto = np.where(bad >= 0, bad + 1, length)
-        for a, i in enumerate(active):
-            m = upto[a]
-            max_err[i] = max(max_err[i], cp_err[a, :m].max())
-            peak[i] = np.maximum(peak[i], np.abs(tau[:, a, :m]).max(axis=1))
-            saturated[i] += sat[0, a, :m].sum()
-            if bad[a] >= 0:
-                diverged_at[i] = ref.t[k0 + bad[a] + 1]
+        totals.add(active, upto, bad, cp_err, tau, sat, ref.t[k0 + 1 : k0 + length + 1])
         if log:
-            m = upto[0]
-            logs["x"].append(np.column_stack([X[:, active[0]], X_next[:, 0, : m - 1]]).T)
-            for key, value in (("qdd", qdd), ("tau", tau), ("saturated", sat), ("cp", cp)):
-                logs[key].append(value[:, 0, :m].T)
-            logs["x_last"] = [X_next[:, 0, m - 1]]
+            _log_chunk(logs, X[:, active[0]], X_next[:, 0], (qdd, tau, sat, cp), upto[0])
         X[:, active] = X_next[:, :, -1]
         c[:, active] = c_next[:, :, -1]
         active = active[bad < 0]
         if active.size == 0:
             break
-    ok = np.isnan(diverged_at)
+    ok = np.isnan(totals.diverged_at)
     end_err = np.linalg.norm(cp_points(ref.arm, X.T[:, :3]) - ref.cp[-1, :, 0], axis=1)
-    max_err[ok] = np.maximum(max_err[ok], end_err[ok])
-    steps = np.where(ok, n, np.rint((diverged_at - ref.t[0]) / ref.period))
+    totals.max_err[ok] = np.maximum(totals.max_err[ok], end_err[ok])
+    steps = np.where(ok, n, np.rint((totals.diverged_at - ref.t[0]) / ref.period))
     return Batch(
         t=ref.t,
         x_final=X.T.copy(),
-        max_cp_error=max_err,
-        diverged_at=diverged_at,
-        peak_torque=peak,
-        saturated_fraction=saturated / np.maximum(steps, 1),
+        max_cp_error=totals.max_err,
+        diverged_at=totals.diverged_at,
+        peak_torque=totals.peak,
+        saturated_fraction=totals.saturated / np.maximum(steps, 1),
         log=_join_log(logs, ref.arm) if log else None,
     )
+
+
+def _log_chunk(logs: dict, x_first, x_next, outputs, m: int) -> None:
+    """Keep the first m periods of a single run's chunk (its state before each period)."""
+    logs["x"].append(np.column_stack([x_first, x_next[:, : m - 1]]).T)
+    for key, value in zip(("qdd", "tau", "saturated", "cp"), outputs, strict=True):
+        logs[key].append(value[:, 0, :m].T)
+    logs["x_last"] = [x_next[:, m - 1]]
 
 
 def _join_log(logs: dict, model) -> dict:
