@@ -57,7 +57,7 @@ def _compiler_available() -> bool:
     return shutil.which("gcc") is not None or shutil.which("cc") is not None
 
 
-@lru_cache(maxsize=4)
+@lru_cache(maxsize=8)
 def step_function(controller: Controller, jit: bool = False) -> ca.Function:
     """``(X, c, r, noise, p) -> (X_next, c_next, tau, qdd, cp, saturated)`` for one period.
 
@@ -94,10 +94,9 @@ def step_function(controller: Controller, jit: bool = False) -> ca.Function:
     return ca.Function("step", ins, outs, *names)
 
 
-@lru_cache(maxsize=16)
+@lru_cache(maxsize=64)
 def _batch_function(step: ca.Function, length: int, runs: int) -> ca.Function:
-    """``length`` periods accumulated over (X, c), mapped over ``runs`` runs (a few kept: a
-    benchmark over many plans would otherwise keep every plan's functions, gigabytes)."""
+    """``length`` periods accumulated over (X, c), mapped over ``runs`` runs."""
     return step.mapaccum("chunk", length, [0, 1], [0, 1]).map(runs)
 
 
