@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 from .kinematics import ReachError
 from .plan import CPPlan, SingularPlanError, closed_form
@@ -156,11 +157,17 @@ PLANNERS: dict[str, Callable[[Problem], Solution]] = {
 
 
 def solve(problem: Problem) -> Solution:
-    """Solve a validated problem with its planner and verify the result.
+    """Solve a validated problem with its planner, verify the result and, when the problem
+    has a ``tracking`` block, track the solved plan on its plant.
 
     Returns
     -------
     Solution
         Its ``status`` says whether it worked; failures never raise.
     """
-    return PLANNERS[problem.planner](problem)
+    solution = PLANNERS[problem.planner](problem)
+    if problem.spec.tracking is not None and solution.ok:
+        from .tracking import track_problem
+
+        solution = replace(solution, tracking=track_problem(problem, solution.plan))
+    return solution

@@ -12,6 +12,7 @@ import numpy as np
 
 from .kinematics import kinematic_functions
 from .results import Solution
+from .tracking import TrackingOutcome
 from .trajectory import Trajectory
 
 
@@ -112,6 +113,37 @@ def plot_gamma(solution: Solution, ax=None, gamma_min: float | None = None):
     return fig
 
 
+def plot_tracking(solution: Solution):
+    """The plan against the tracked motion: CP coordinates, CP error, torques over time.
+
+    Returns the figure.
+    """
+    out = solution.tracking
+    traj = solution.trajectory
+    fig, (path, err, tau) = plt.subplots(3, 1, figsize=(6, 9), sharex=True)
+    for i, name in enumerate(("x", "y")):
+        path.plot(out.t, out.cp_ref[:, i], "k--", lw=1.2, label=f"CP {name} plan")
+        path.plot(out.t, out.cp[:, i], "r-" if i == 0 else "b-", lw=0.9, label=f"CP {name} tracked")
+    path.set_ylabel("CP [m]")
+    path.set_title(f"{solution.name}: {out.controller} at {out.rate_hz:g} Hz on the plant")
+    path.grid(alpha=0.3)
+    path.legend(fontsize="small", ncol=2)
+    err.semilogy(out.t, np.maximum(out.cp_error, 1e-12), "r-")
+    err.axhline(out.tolerance.cp, color="k", ls=":", lw=0.8, label="success tolerance at T")
+    err.set_ylabel("CP error [m]")
+    err.grid(True, which="both", alpha=0.3)
+    err.legend(fontsize="small")
+    for i, style in enumerate(("-", "--")):
+        tau.plot(traj.t, traj.tau[:, i], "k" + style, lw=1, label=f"tau{i + 1} plan")
+        tau.step(out.t[:-1], out.tau[:, i], "r" + style, where="post", lw=0.8,
+                 label=f"tau{i + 1} applied")  # fmt: skip
+    tau.set_xlabel("t [s]")
+    tau.set_ylabel("torque [N m or N]")
+    tau.grid(alpha=0.3)
+    tau.legend(fontsize="small", ncol=2)
+    return fig
+
+
 def _axes(ax, count: int, size=(6, 4)):
     if ax is not None:
         axes = np.atleast_1d(ax)
@@ -121,7 +153,8 @@ def _axes(ax, count: int, size=(6, 4)):
 
 
 def write_figures(solution: Solution, directory: str | Path) -> list[Path]:
-    """Write ``third_link.png``, ``arm.png``, ``torques.png`` and ``gamma.png``.
+    """Write ``third_link.png``, ``arm.png``, ``torques.png``, ``gamma.png`` and, for a
+    tracked plan, ``tracking.png``.
 
     Returns
     -------
@@ -131,12 +164,15 @@ def write_figures(solution: Solution, directory: str | Path) -> list[Path]:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     written = []
-    for name, fn in (
+    figures = [
         ("third_link", plot_third_link),
         ("arm", plot_arm),
         ("torques", plot_torques),
         ("gamma", plot_gamma),
-    ):
+    ]
+    if isinstance(solution.tracking, TrackingOutcome):
+        figures.append(("tracking", plot_tracking))
+    for name, fn in figures:
         fig = fn(solution)
         fig.tight_layout()
         path = directory / f"{name}.png"

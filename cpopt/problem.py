@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import typing
 from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
@@ -25,6 +26,8 @@ from .nodes import free_value_names, gamma_is_free, node_values, si_bounds
 from .objectives import COLLOCATION_OBJECTIVES, OBJECTIVES, weights
 from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, Arm, Link
+from .tracking.dfl import DEFAULT_POLES
+from .tracking.tvlqr import DEFAULT_Q, DEFAULT_QF, DEFAULT_R
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -179,6 +182,56 @@ class VerificationSpec(_Spec):
     samples: Annotated[int, Field(ge=11, le=20001)] = 401
 
 
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+
+
+class PlantLinkSpec(_Spec):
+    """Overrides of one link of the arm for the simulated plant (same meaning as ``LinkSpec``)."""
+
+    length: Positive | None = None
+    mass: Positive | None = None
+    com: Number | None = None
+    inertia: NonNegative | None = None
+
+
+class FrictionSpec(_Spec):
+    """Joint friction of joints 1..3: viscous [N m s/rad or N s/m], Coulomb [N m or N]."""
+
+    viscous: Triple(NonNegative) = [0.0, 0.0, 0.0]
+    coulomb: Triple(NonNegative) = [0.0, 0.0, 0.0]
+
+
+class PlantSpec(_Spec):
+    """The simulated arm: link overrides, friction, torque limits [N m or N]."""
+
+    links: Triple(PlantLinkSpec | None) | None = None
+    friction: FrictionSpec = FrictionSpec()
+    torque_limit: Pair(Positive | None) | None = None
+
+
+class NoiseSpec(_Spec):
+    """Standard deviations of the measured joint positions [rad or m] and velocities, seed."""
+
+    position: Triple(NonNegative) = [0.0, 0.0, 0.0]
+    velocity: Triple(NonNegative) = [0.0, 0.0, 0.0]
+    seed: Annotated[int, Field(ge=0)] = 0
+
+
+class TrackingSpec(_Spec):
+    """Tracking of the plan by a controller on a realistic plant (see docs/problems.md)."""
+
+    controller: Literal["tvlqr", "dfl"] = "tvlqr"
+    rate_hz: Annotated[float, Field(gt=0, le=100000, allow_inf_nan=False)] = 1000.0
+    Q: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_Q)
+    R: Pair(Positive) = list(DEFAULT_R)
+    Qf: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_QF)
+    poles: Annotated[
+        list[Annotated[float, Field(lt=0, allow_inf_nan=False)]], Field(min_length=4, max_length=4)
+    ] = list(DEFAULT_POLES)
+    noise: NoiseSpec = NoiseSpec()
+    plant: PlantSpec = PlantSpec()
+
+
 class ProblemSpec(_Spec):
     """A whole problem file."""
 
@@ -191,6 +244,7 @@ class ProblemSpec(_Spec):
     optimizer: OptimizerSpec = OptimizerSpec()
     collocation: CollocationSpec = CollocationSpec()
     verification: VerificationSpec = VerificationSpec()
+    tracking: TrackingSpec | None = None
 
 
 @dataclass(frozen=True)
@@ -252,6 +306,17 @@ def _key_path(loc) -> str:
     return out
 
 
+def _model_in(annotation) -> type[BaseModel] | None:
+    """The first pydantic model inside a type annotation (through lists, unions, Annotated)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in typing.get_args(annotation):
+        found = _model_in(arg)
+        if found is not None:
+            return found
+    return None
+
+
 def _allowed_keys(loc) -> list[str]:
     model: type[BaseModel] | None = ProblemSpec
     for part in loc[:-1]:
@@ -260,14 +325,7 @@ def _allowed_keys(loc) -> list[str]:
         field = model.model_fields.get(part)
         if field is None:
             return []
-        ann = field.annotation
-        inner = getattr(ann, "__args__", (ann,))
-        model = next((a for a in inner if isinstance(a, type) and issubclass(a, BaseModel)), None)
-        if model is None:
-            for a in inner:  # list[ViaSpec] and the like
-                for b in getattr(a, "__args__", ()):
-                    if isinstance(b, type) and issubclass(b, BaseModel):
-                        model = b
+        model = _model_in(field.annotation)
     return list(model.model_fields) if model else []
 
 
@@ -370,6 +428,8 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
         _check_optimizer(spec, len(nodes) - 1, source)
     if spec.planner == "collocation":
         _check_collocation(spec, source)
+    if spec.tracking is not None:
+        check_tracking(spec, source)
     return arm, nodes
 
 
@@ -412,6 +472,44 @@ def _check_collocation(spec: ProblemSpec, source: str) -> None:
     if terms.get("duration") and "duration" not in o.free:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
+        )
+
+
+def plant_links(spec: ProblemSpec) -> list[Link]:
+    """The plant's links: each key of ``tracking.plant.links[i]`` overrides the arm's value;
+    a key given nowhere takes the usual default (uniform rod), so a link given only a new
+    mass stays a uniform rod."""
+    overrides = (spec.tracking.plant.links if spec.tracking else None) or [None] * 3
+    links = []
+    for model, new in zip(spec.arm.links, overrides, strict=True):
+        values = model.model_dump()
+        if new is not None:
+            values.update({k: v for k, v in new.model_dump().items() if v is not None})
+        links.append(Link(values["length"], values["mass"], values["com"], values["inertia"]))
+    return links
+
+
+def check_tracking(spec: ProblemSpec, source: str) -> None:
+    """The ``tracking`` block's physics: a valid plant third link, a controller for the plan."""
+    com3 = plant_links(spec)[2].d
+    if not com3 > 0:
+        raise ProblemError(
+            source,
+            "tracking.plant.links[2].com",
+            "the plant's third link needs its centre of mass beyond its joint (> 0 m), "
+            f"got {com3!r}",
+        )
+    if (
+        spec.tracking.controller == "dfl"
+        and spec.planner == "collocation"
+        and not spec.collocation.gamma_constraint
+    ):
+        raise ProblemError(
+            source,
+            "tracking.controller",
+            "dfl needs gamma away from zero along the plan, which a collocation plan without "
+            "collocation.gamma_constraint does not guarantee; use tvlqr or set "
+            "collocation.gamma_constraint: true",
         )
 
 

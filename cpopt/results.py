@@ -7,8 +7,10 @@ The file contract (documented in README.md):
   ``theta_min_deg``, ``theta_max_deg``, ``max_torque_jump``}, ``verification``
   {``max_cp_error``, ``final_state_error``, ``passive_torque_residual``, ...}, ``solver``
   {``iterations``, ``build_time_s``, ``solve_time_s``, ``message``}, ``free_values``,
-  ``cpopt_version``.
+  ``cpopt_version``; with a ``tracking`` block also ``tracking`` (see
+  :meth:`cpopt.tracking.TrackingOutcome.summary`).
 * ``trajectory.csv``: :data:`CSV_COLUMNS`, one row per sample, SI units and radians.
+* ``tracking.csv`` (tracked problems): :data:`TRACKING_CSV_COLUMNS`, one row per control period.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from . import __version__
 from .plan import CPPlan
 from .simulate import Verification
 from .solver import SolverStats
+from .tracking import CSV_COLUMNS as TRACKING_CSV_COLUMNS
+from .tracking import TrackingOutcome, TrackingRefused
 from .trajectory import Metrics, Trajectory
 
 CSV_COLUMNS = (
@@ -64,6 +68,8 @@ class Solution:
         Solver statistics.
     message : str
         What went wrong, for a status other than ``solved``.
+    tracking : TrackingOutcome or TrackingRefused or None
+        The plan tracked on a realistic plant (problems with a ``tracking`` block).
     """
 
     name: str
@@ -75,6 +81,7 @@ class Solution:
     verification: Verification | None = None
     solver: SolverStats = field(default_factory=SolverStats)
     message: str = ""
+    tracking: TrackingOutcome | TrackingRefused | None = None
 
     @property
     def ok(self) -> bool:
@@ -86,7 +93,7 @@ class Solution:
         solver = self.solver.as_dict()
         if self.message and not solver["message"]:
             solver["message"] = self.message
-        return {
+        document = {
             "name": self.name,
             "status": self.status,
             "planner": self.planner,
@@ -97,6 +104,9 @@ class Solution:
             "free_values": {} if self.plan is None else dict(self.plan.free_values),
             "cpopt_version": __version__,
         }
+        if self.tracking is not None:
+            document["tracking"] = self.tracking.summary()
+        return document
 
 
 def _clean(value):
@@ -141,6 +151,23 @@ def trajectory_table(traj: Trajectory) -> np.ndarray:
     )
 
 
+def _write_tracking(solution: Solution, directory: Path) -> list[Path]:
+    """``tracking.csv`` of a solved, tracked plan (:data:`TRACKING_CSV_COLUMNS`), else none
+    (an earlier run's file is removed)."""
+    path = directory / "tracking.csv"
+    if not (solution.ok and isinstance(solution.tracking, TrackingOutcome)):
+        path.unlink(missing_ok=True)
+        return []
+    table = solution.tracking.table()
+
+    def write_csv(handle):
+        handle.write(",".join(TRACKING_CSV_COLUMNS) + "\n")
+        np.savetxt(handle, table, delimiter=",", fmt="%.12g")
+
+    atomic_write(path, write_csv)
+    return [path]
+
+
 def write_solution(solution: Solution, directory: str | Path) -> list[Path]:
     """Write ``solution.json`` and, for a solved plan, ``trajectory.csv`` into a folder.
 
@@ -154,7 +181,7 @@ def write_solution(solution: Solution, directory: str | Path) -> list[Path]:
     """
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    written = []
+    written = _write_tracking(solution, directory)
     csv_path = directory / "trajectory.csv"
     if solution.ok and solution.trajectory is not None:
         table = trajectory_table(solution.trajectory)

@@ -26,26 +26,7 @@ from .kinematics import inverse_derivatives, inverse_position, joint_state, kine
 from .mapping import mapped
 from .plan import CPPlan, Node
 from .robot import Arm
-
-DEFAULT_POLES = (-10.0, -10.0, -10.0, -10.0)
-"""Closed-loop poles of each CP error chain [1/s]."""
-
-
-def pole_placement_gains(poles=DEFAULT_POLES) -> np.ndarray:
-    """Gains (k0, k1, k2, k3) giving the error chain e'''' + k3 e''' + ... + k0 e = 0 the poles.
-
-    Parameters
-    ----------
-    poles : sequence of float or complex
-        Four poles with negative real parts [1/s] (complex ones in conjugate pairs).
-    """
-    poles = np.asarray(poles, complex)
-    if poles.size != 4 or np.any(poles.real >= 0):
-        raise ValueError(f"give four poles with negative real parts, got {poles.tolist()}")
-    coeffs = np.poly(poles)  # s^4 + c1 s^3 + c2 s^2 + c3 s + c4
-    if np.max(np.abs(coeffs.imag)) > 1e-9 * np.max(np.abs(coeffs)):
-        raise ValueError("complex poles must come in conjugate pairs")
-    return coeffs.real[::-1][:4].copy()
+from .tracking.dfl import DEFAULT_POLES, dfl_law, pole_placement_gains
 
 
 @dataclass(frozen=True)
@@ -145,22 +126,13 @@ def simulate_reduced(
 @lru_cache(maxsize=16)
 def _closed_loop_function(model: Arm, plant: Arm) -> ca.Function:
     """X' and tau for X = (q, qd, xi, eta), reference Pd (2 x 5) and gains (4,)."""
-    K, g0 = model.K, model.gravity
     X = ca.SX.sym("X", 8)
     Pd = ca.SX.sym("Pd", 2, 5)
     gains = ca.SX.sym("k", 4)
     q, qd = X[0:3], X[3:6]
-    kin = kinematic_functions(model)
-    s = kin["pose"](q)
-    sd = kin["jacobian"](q) @ qd
-    z = ca.vertcat(s, sd, X[6], X[7])
-    fl = flat.flat_functions(K, g0)
-    P = fl["output"](z)
-    v = Pd[:, 4] + (Pd[:, 0:4] - P) @ gains
-    _, zdot, a = fl["compensator"](z, v)
-    _, tau = arm_dynamics(model)["track"](q, qd, a)
+    tau, c_dot = dfl_law(model)(q, qd, X[6:8], Pd, gains)
     qdd = arm_dynamics(plant)["forward"](q, qd, tau)
-    Xdot = ca.vertcat(qd, qdd, zdot[6], zdot[7])
+    Xdot = ca.vertcat(qd, qdd, c_dot)
     return ca.Function("closed_loop", [X, Pd, gains], [Xdot, tau])
 
 

@@ -47,8 +47,8 @@ def test_readme_commands_name_real_things():
 
 
 def _public_functions():
-    for info in pkgutil.iter_modules(cpopt.__path__):
-        module = importlib.import_module(f"cpopt.{info.name}")
+    for info in pkgutil.walk_packages(cpopt.__path__, prefix="cpopt."):
+        module = importlib.import_module(info.name)
         for name, obj in vars(module).items():
             if name.startswith("_") or getattr(obj, "__module__", None) != module.__name__:
                 continue

@@ -1,0 +1,130 @@
+"""One tracking run of a plan: choose the controller, build the plant, simulate, measure."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..robot import Arm
+from .controller import Controller
+from .dfl import DEFAULT_POLES, DFLController, SingularTrackingError
+from .outcome import Tolerance, TrackingOutcome, final_errors
+from .plant import Plant
+from .reference import Reference, reference
+from .simulation import Noise, simulate_batch
+from .tvlqr import DEFAULT_Q, DEFAULT_QF, DEFAULT_R, TVLQRController
+
+CONTROLLERS = ("tvlqr", "dfl")
+DEFAULT_RATE_HZ = 1000.0
+"""Default control rate [Hz]."""
+
+
+def make_controller(
+    name: str,
+    ref: Reference,
+    Q=DEFAULT_Q,
+    R=DEFAULT_R,
+    Qf=DEFAULT_QF,
+    poles=DEFAULT_POLES,
+) -> Controller:
+    """A controller by name (``tvlqr`` uses Q, R, Qf; ``dfl`` uses the poles)."""
+    if name == "tvlqr":
+        return TVLQRController(ref, Q, R, Qf)
+    if name == "dfl":
+        return DFLController(ref, poles)
+    raise ValueError(f"controller must be one of {CONTROLLERS}, got {name!r}")
+
+
+def model_plant(arm: Arm, torque_limit=None) -> Plant:
+    """The plant equal to the model: no friction, saturation at ``torque_limit`` if given."""
+    return Plant(arm, torque_limit=None if torque_limit is None else tuple(torque_limit))
+
+
+def track(
+    plan,
+    controller: str | Controller = "tvlqr",
+    plant: Plant | None = None,
+    noise: Noise | None = None,
+    rate_hz: float = DEFAULT_RATE_HZ,
+    tolerance: Tolerance | None = None,
+    **gains,
+) -> TrackingOutcome:
+    """Track a plan with a controller on a plant, sampled at ``rate_hz``.
+
+    Parameters
+    ----------
+    plan : CPPlan or JointPlan
+        The plan (its arm is the controller's model). Ignored when ``controller`` is a
+        :class:`Controller`, which carries its own reference.
+    controller : str or Controller
+        ``tvlqr`` or ``dfl``, or a controller built by :func:`make_controller`.
+    plant : Plant, optional
+        The simulated arm (default: the model, no friction, no saturation).
+    noise : Noise, optional
+        Measurement noise (default: none).
+    rate_hz : float
+        Control rate [Hz].
+    tolerance : Tolerance, optional
+        Success criterion.
+    **gains
+        ``Q``, ``R``, ``Qf`` or ``poles`` for :func:`make_controller`.
+    """
+    if isinstance(controller, str):
+        controller = make_controller(controller, reference(plan, rate_hz), **gains)
+    ref = controller.reference
+    plant = plant or model_plant(ref.arm)
+    batch = simulate_batch(controller, plant.parameters()[None, :], noise, log=True)
+    log = batch.log
+    m = log["tau"].shape[0]
+    diverged = None if not batch.diverged[0] else float(batch.diverged_at[0])
+    return TrackingOutcome(
+        controller=controller.name,
+        rate_hz=1.0 / ref.period,
+        t=ref.t[: m + 1],
+        x=log["x"],
+        qdd=log["qdd"],
+        tau=log["tau"],
+        saturated=log["saturated"],
+        cp=log["cp"],
+        cp_ref=ref.cp[: m + 1, :, 0],
+        diverged_at=diverged,
+        final=final_errors(ref.arm, ref.goal, log["x"][-1:]),
+        tolerance=tolerance or Tolerance(),
+    )
+
+
+@dataclass(frozen=True)
+class TrackingRefused:
+    """A controller that cannot follow the plan (dfl where gamma crosses zero), and why."""
+
+    controller: str
+    message: str
+
+    def summary(self) -> dict:
+        """The ``tracking`` entry of ``solution.json``: not a success, with the reason."""
+        return {"controller": self.controller, "success": False, "error": self.message}
+
+
+def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
+    """Track a plan as the problem's ``tracking`` block asks (see docs/problems.md).
+
+    The plant's torque limits are ``tracking.plant.torque_limit``, else the problem's
+    ``optimizer.limits.torque``; its links are the arm's with the block's overrides.
+    """
+    from dataclasses import replace
+
+    from ..problem import plant_links
+
+    spec = problem.spec.tracking
+    limit = spec.plant.torque_limit or problem.spec.optimizer.limits.torque
+    plant = Plant(
+        arm=replace(plan.arm, links=tuple(plant_links(problem.spec))),
+        viscous=tuple(spec.plant.friction.viscous),
+        coulomb=tuple(spec.plant.friction.coulomb),
+        torque_limit=None if all(v is None for v in limit) else tuple(limit),
+    )
+    noise = Noise(tuple(spec.noise.position), tuple(spec.noise.velocity), spec.noise.seed)
+    gains = {"Q": spec.Q, "R": spec.R, "Qf": spec.Qf, "poles": spec.poles}
+    try:
+        return track(plan, spec.controller, plant, noise, spec.rate_hz, **gains)
+    except SingularTrackingError as err:
+        return TrackingRefused(spec.controller, str(err))

@@ -1,0 +1,264 @@
+"""The sampled-data closed loop: a controller at a fixed rate, a plant, noise; many at once.
+
+One CasADi function does a whole control period: add the measurement noise, evaluate the
+controller's law, saturate and hold the torque, integrate the plant by RK4 substeps. It is
+accumulated over a chunk of periods (``mapaccum``) and mapped over runs that differ in their
+plant parameters and noise, so a batch of runs is one call per chunk. Between chunks, runs
+that diverged are stopped and dropped from the batch.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from ..kinematics import kinematic_functions
+from .controller import Controller
+from .outcome import cp_points
+from .plant import PARAMETER_NAMES, plant_period
+
+CHUNK = 100
+"""Control periods per call of the simulation function (between divergence checks)."""
+DIVERGED_CP = 1.0
+"""A run whose CP is farther than this from the plan's [m] is stopped as diverged."""
+DIVERGED_VELOCITY = 100.0
+"""... and so is one with a joint faster than this [rad/s or m/s] or a non-finite state."""
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Measurement noise: standard deviations of the measured joint states, and a seed.
+
+    Attributes
+    ----------
+    position : tuple of float
+        Of q1, q2, q3 [rad or m].
+    velocity : tuple of float
+        Of q1dot, q2dot, q3dot [rad/s or m/s].
+    seed : int
+        Seed of the noise; run i of a batch draws from ``numpy.random.default_rng([seed, i])``.
+    """
+
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    seed: int = 0
+
+    @property
+    def std(self) -> np.ndarray:
+        """The six standard deviations."""
+        return np.array([*self.position, *self.velocity], float)
+
+
+def _compiler_available() -> bool:
+    return shutil.which("gcc") is not None or shutil.which("cc") is not None
+
+
+@lru_cache(maxsize=8)
+def step_function(controller: Controller, jit: bool = False) -> ca.Function:
+    """``(X, c, r, noise, p) -> (X_next, c_next, tau, qdd, cp, saturated)`` for one period.
+
+    X (6,) is the plant's joint state, c (2,) the controller's, r the controller's data of the
+    instant, noise (6,) the measurement errors, p the plant's parameters; tau (2,) is the
+    torque held over the period after saturation, qdd (3,) the plant's accelerations at the
+    instant, cp (2,) its CP through the model's kinematics, saturated 1 when a torque was
+    clipped. With ``jit`` the function is compiled to C (gcc, under a second) when a compiler
+    is found.
+    """
+    ref = controller.reference
+    model = ref.arm
+    law = controller.law()
+    X = ca.SX.sym("X", 6)
+    c = ca.SX.sym("c", 2)
+    r = ca.SX.sym("r", law.size1_in(0))
+    noise = ca.SX.sym("noise", 6)
+    p = ca.SX.sym("p", len(PARAMETER_NAMES))
+    measured = X + noise
+    tau_cmd, c_next = law(r, measured[0:3], measured[3:6], c)
+    period = plant_period(model.kind, model.base, model.gravity, ref.period)
+    X_next, qdd, tau = period(X, tau_cmd, p)
+    s = kinematic_functions(model)["pose"](X[0:3])
+    cp = s[0:2] + model.K * ca.vertcat(ca.cos(s[2]), ca.sin(s[2]))
+    saturated = ca.sum1(ca.fabs(tau_cmd - tau)) > 0
+    ins, outs = [X, c, r, noise, p], [X_next, c_next, tau, qdd, cp, saturated]
+    names = (["X", "c", "r", "noise", "p"], ["X_next", "c_next", "tau", "qdd", "cp", "saturated"])
+    if jit and _compiler_available():
+        opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O1"]}}
+        try:
+            return ca.Function("step", ins, outs, *names, opts)
+        except RuntimeError:  # no working compiler after all: interpret
+            pass
+    return ca.Function("step", ins, outs, *names)
+
+
+@lru_cache(maxsize=64)
+def _batch_function(step: ca.Function, length: int, runs: int) -> ca.Function:
+    """``length`` periods accumulated over (X, c), mapped over ``runs`` runs."""
+    return step.mapaccum("chunk", length, [0, 1], [0, 1]).map(runs)
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Runs of one controller on many plants (one entry per run).
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        Control instants (n + 1,) [s].
+    x_final : numpy.ndarray
+        Plant joint state at the last instant reached (N, 6).
+    max_cp_error : numpy.ndarray
+        Largest CP error over the instants reached (N,) [m].
+    diverged_at : numpy.ndarray
+        When a run was stopped as diverged, NaN for the others (N,) [s].
+    peak_torque : numpy.ndarray
+        Largest |torque| applied (N, 2) [N m or N].
+    saturated_fraction : numpy.ndarray
+        Fraction of the periods in which a torque was clipped (N,).
+    log : dict or None
+        For a single run: ``x`` (n + 1, 6), ``qdd`` (n, 3), ``tau`` (n, 2), ``saturated``
+        (n,), ``cp`` (n + 1, 2), up to the last instant reached.
+    """
+
+    t: np.ndarray
+    x_final: np.ndarray
+    max_cp_error: np.ndarray
+    diverged_at: np.ndarray
+    peak_torque: np.ndarray
+    saturated_fraction: np.ndarray
+    log: dict | None = None
+
+    @property
+    def diverged(self) -> np.ndarray:
+        """True for runs stopped as diverged (N,)."""
+        return ~np.isnan(self.diverged_at)
+
+
+def _first_bad(X_next: np.ndarray, cp_err: np.ndarray) -> np.ndarray:
+    """Index of the first diverged period of each run in a chunk, -1 for none (A, L)."""
+    with np.errstate(invalid="ignore"):
+        bad = (
+            ~np.isfinite(X_next).all(axis=0)
+            | (np.abs(X_next[3:6]) > DIVERGED_VELOCITY).any(axis=0)
+            | ~(cp_err <= DIVERGED_CP)
+        )
+    return np.where(bad.any(axis=1), bad.argmax(axis=1), -1)
+
+
+def _noise_block(noise: Noise, runs: np.ndarray, rngs: list, length: int) -> np.ndarray:
+    """Measurement errors (6, length * len(runs)), run after run."""
+    std = noise.std
+    if not std.any():
+        return np.zeros((6, length * runs.size))
+    return np.hstack([(rngs[i].standard_normal((length, 6)) * std).T for i in runs])
+
+
+class _Totals:
+    """Per-run figures accumulated chunk by chunk (N runs)."""
+
+    def __init__(self, runs: int) -> None:
+        self.max_err = np.zeros(runs)
+        self.diverged_at = np.full(runs, np.nan)
+        self.peak = np.zeros((runs, 2))
+        self.saturated = np.zeros(runs)
+
+    def add(self, active, upto, bad, cp_err, tau, sat, t_after) -> None:
+        """Fold in one chunk: ``upto[a]`` periods of active run a count; t_after (length,)
+        are the instants that end the chunk's periods."""
+        for a, i in enumerate(active):
+            m = upto[a]
+            self.max_err[i] = max(self.max_err[i], cp_err[a, :m].max())
+            self.peak[i] = np.maximum(self.peak[i], np.abs(tau[:, a, :m]).max(axis=1))
+            self.saturated[i] += sat[0, a, :m].sum()
+            if bad[a] >= 0:
+                self.diverged_at[i] = t_after[bad[a]]
+
+
+def simulate_batch(
+    controller: Controller,
+    parameters: np.ndarray,
+    noise: Noise | None = None,
+    jit: bool = False,
+    log: bool = False,
+) -> Batch:
+    """Run a controller on plants with the given parameters, from the plan's start state.
+
+    Parameters
+    ----------
+    controller : Controller
+        The controller (its reference fixes the grid and the model).
+    parameters : numpy.ndarray
+        Plant parameters (N, 20), one row per run (:data:`~cpopt.tracking.plant.PARAMETER_NAMES`).
+    noise : Noise, optional
+        Measurement noise (none by default); run i draws from ``default_rng([seed, i])``.
+    jit : bool
+        Compile the period function to C (worth it for batches of hundreds of runs).
+    log : bool
+        Keep every period of a single run (N = 1) in ``Batch.log``.
+    """
+    ref = controller.reference
+    noise = noise or Noise()
+    P = np.atleast_2d(np.asarray(parameters, float)).T
+    N, n = P.shape[1], ref.steps
+    step = step_function(controller, jit)
+    schedule = controller.schedule()
+    rngs = [np.random.default_rng([noise.seed, i]) for i in range(N)]
+    X = np.tile(ref.x[0][:, None], (1, N))
+    c = np.tile(controller.initial_state()[:, None], (1, N))
+    active = np.arange(N)
+    totals = _Totals(N)
+    logs: dict[str, list] = {k: [] for k in ("x", "qdd", "tau", "saturated", "cp")}
+    for k0 in range(0, n, CHUNK):
+        length, A = min(CHUNK, n - k0), active.size
+        f = _batch_function(step, length, A)
+        # per-period inputs run after run: each run's parameters repeated over its periods
+        params = np.repeat(P[:, active], length, axis=1)
+        out = f(X[:, active], c[:, active], schedule[:, k0 : k0 + length],
+                _noise_block(noise, active, rngs, length), params)  # fmt: skip
+        X_next, c_next, tau, qdd, cp, sat = (
+            np.asarray(o).reshape(o.shape[0], A, length) for o in out
+        )
+        cp_err = np.linalg.norm(cp - ref.cp[k0 : k0 + length, :, 0].T[:, None, :], axis=0)
+        bad = _first_bad(X_next, cp_err)
+        upto = np.where(bad >= 0, bad + 1, length)
+        totals.add(active, upto, bad, cp_err, tau, sat, ref.t[k0 + 1 : k0 + length + 1])
+        if log:
+            _log_chunk(logs, X[:, active[0]], X_next[:, 0], (qdd, tau, sat, cp), upto[0])
+        X[:, active] = X_next[:, :, -1]
+        c[:, active] = c_next[:, :, -1]
+        active = active[bad < 0]
+        if active.size == 0:
+            break
+    ok = np.isnan(totals.diverged_at)
+    end_err = np.linalg.norm(cp_points(ref.arm, X.T[:, :3]) - ref.cp[-1, :, 0], axis=1)
+    totals.max_err[ok] = np.maximum(totals.max_err[ok], end_err[ok])
+    steps = np.where(ok, n, np.rint((totals.diverged_at - ref.t[0]) / ref.period))
+    return Batch(
+        t=ref.t,
+        x_final=X.T.copy(),
+        max_cp_error=totals.max_err,
+        diverged_at=totals.diverged_at,
+        peak_torque=totals.peak,
+        saturated_fraction=totals.saturated / np.maximum(steps, 1),
+        log=_join_log(logs, ref.arm) if log else None,
+    )
+
+
+def _log_chunk(logs: dict, x_first, x_next, outputs, m: int) -> None:
+    """Keep the first m periods of a single run's chunk (its state before each period)."""
+    logs["x"].append(np.column_stack([x_first, x_next[:, : m - 1]]).T)
+    for key, value in zip(("qdd", "tau", "saturated", "cp"), outputs, strict=True):
+        logs[key].append(value[:, 0, :m].T)
+    logs["x_last"] = [x_next[:, m - 1]]
+
+
+def _join_log(logs: dict, model) -> dict:
+    """The chunks of a single run joined, with the state and CP of the last instant reached."""
+    out = {k: np.concatenate(v) for k, v in logs.items() if k != "x_last"}
+    out["x"] = np.vstack([out["x"], logs["x_last"][0]])
+    out["cp"] = np.vstack([out["cp"], cp_points(model, out["x"][-1:, :3])])
+    out["saturated"] = out["saturated"][:, 0] > 0
+    return out
