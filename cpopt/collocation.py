@@ -29,6 +29,7 @@ import numpy as np
 
 from . import flat
 from .dynamics import arm_dynamics, holding_torque
+from .integrate import integrate
 from .kinematics import joint_state, kinematic_functions
 from .mapping import mapped
 from .optimize import _STATUS, MIN_PHASE, _initial_values, _node_names, _to_si, _weights
@@ -310,6 +311,7 @@ def _build(problem: Problem, intervals: int, gamma_constraint: bool, sign: int, 
             "ipopt.print_level": opt.solver.print_level,
             "ipopt.max_iter": opt.solver.max_iter,
             "ipopt.tol": opt.solver.tol,
+            "ipopt.max_wall_time": opt.solver.max_time,
             "ipopt.sb": "yes",
         },
     )
@@ -555,8 +557,6 @@ def replay(plan: JointPlan, goal: Node, tolerance: float = 1e-3) -> ReplayCheck:
     tolerance : float
         Final-state error accepted.
     """
-    from scipy.integrate import solve_ivp
-
     forward = arm_dynamics(plan.arm)["forward"]
     f = plan.fine
     X = np.concatenate([plan.q[0], plan.qd[0]])
@@ -570,10 +570,10 @@ def replay(plan: JointPlan, goal: Node, tolerance: float = 1e-3) -> ReplayCheck:
         def rhs(_t, x, tau=tau):
             return np.concatenate([x[3:], np.asarray(forward(x[:3], x[3:], tau)).ravel()])
 
-        sol = solve_ivp(rhs, (t0, t1), X, "DOP853", t_eval=t_eval, rtol=1e-10, atol=1e-10)
-        X = sol.y[:, -1]
-        times.append(sol.t)
-        states.append(sol.y.T)
+        t, Xs = integrate(rhs, X, t0, t1, t_eval, rtol=1e-10, atol=1e-10)  # bounded
+        X = Xs[-1]
+        times.append(t)
+        states.append(Xs)
     t = np.concatenate(times)
     state = pose_states(plan.arm, np.concatenate(states))
     K = plan.arm.K

@@ -415,6 +415,7 @@ def _build(problem: Problem, sign: int, extra: tuple) -> _NLP:
             "tol": o.solver.tol,
             "sb": "yes",
             "mu_strategy": o.solver.mu_strategy,
+            "max_wall_time": o.solver.max_time,
         },
     }
     if o.solver.jit:
@@ -557,6 +558,7 @@ _STATUS = {
     "Infeasible_Problem_Detected": "infeasible",
     "Maximum_Iterations_Exceeded": "max_iterations",
     "Maximum_CpuTime_Exceeded": "max_iterations",
+    "Maximum_WallTime_Exceeded": "time_limit",
 }
 
 

@@ -1,15 +1,40 @@
-"""One problem through every stage: plan, sample, measure, verify by simulation."""
+"""One problem through every stage: plan, sample, measure, verify by simulation.
+
+The whole of it runs under the problem's wall-clock budget (``optimizer.solver.max_time``,
+see :mod:`cpopt.budget`): when it runs out, the solution so far is returned with status
+``time_limit``. Each stage is reported to :mod:`cpopt.progress`.
+"""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
+from . import progress
+from .budget import Budget, TimeLimitExceeded, enforced
 from .kinematics import ReachError
 from .plan import CPPlan, SingularPlanError, closed_form
 from .problem import Problem
 from .results import Solution, SolverInfo
-from .simulate import verify
+from .simulate import DivergedVerification, verify
 from .trajectory import metrics, sample
+
+
+@dataclass
+class _Partial:
+    """What the stages have produced so far (kept for a solve stopped by the time limit)."""
+
+    stage: str = "planning"
+    plan: object = None
+    trajectory: object = None
+    metrics: object = None
+    solver: SolverInfo = field(default_factory=SolverInfo)
+
+    def reached(self, stage: str, **done) -> None:
+        self.stage = stage
+        for key, value in done.items():
+            setattr(self, key, value)
+        progress.stage(stage)
 
 
 def evaluate(
@@ -40,6 +65,11 @@ def evaluate(
     message : str
         The planner's message.
     """
+    return _evaluate(plan, name, solver, status, samples, poles, message, _Partial())
+
+
+def _evaluate(plan, name, solver, status, samples, poles, message, partial) -> Solution:
+    partial.reached("sampling the plan", plan=plan, solver=solver)
     try:
         traj = sample(plan, per_phase=samples)
     except ReachError as err:
@@ -47,15 +77,19 @@ def evaluate(
             name, "unreachable", plan.planner, plan=plan, solver=solver, message=str(err)
         )
     measured = metrics(plan, traj)
+    partial.reached("verifying by simulation", trajectory=traj, metrics=measured)
     checked = verify(plan, measured.max_passive_residual, poles)
     if status == "solved" and not checked.passed():
         status = "verification_failed"
-        message = (
-            f"simulation does not reproduce the plan: CP error "
-            f"{checked.max_cp_error:.3g} m, final state error "
-            f"{checked.final_state_error:.3g}, reduced-model CP error "
-            f"{checked.reduced.max_cp_error:.3g} m"
-        )
+        if isinstance(checked, DivergedVerification):
+            message = checked.message()
+        else:
+            message = (
+                f"simulation does not reproduce the plan: CP error "
+                f"{checked.max_cp_error:.3g} m, final state error "
+                f"{checked.final_state_error:.3g}, reduced-model CP error "
+                f"{checked.reduced.max_cp_error:.3g} m"
+            )
     return Solution(
         name,
         status,
@@ -69,20 +103,30 @@ def evaluate(
     )
 
 
-def _collocation(problem: Problem) -> Solution:
+def _collocation(problem: Problem, partial: _Partial) -> Solution:
     """The collocation peer: warm start (optional), solve, sample, replay open loop."""
     from .collocation import collocate, joint_metrics, joint_trajectory, replay
+    from .integrate import DivergenceError
 
     warm = None
     if problem.spec.collocation.warm_start == "flat":
         from .optimize import optimize
 
+        partial.reached("warm start (flat optimizer)")
+        progress.ipopt_run("flat optimizer (warm start of collocation)")
         warm = optimize(problem).plan
+    partial.reached("planning (collocation)")
+    progress.ipopt_run("direct collocation")
     result = collocate(problem, warm_start=warm)
     plan = result.plan
     traj = joint_trajectory(plan)
-    checked = replay(plan, problem.nodes[-1], problem.spec.collocation.replay_tolerance)
+    partial.reached("open-loop replay", plan=plan, trajectory=traj, solver=result.solver)
     status, message = result.status, result.solver.message
+    try:
+        checked = replay(plan, problem.nodes[-1], problem.spec.collocation.replay_tolerance)
+    except DivergenceError as err:
+        checked = None
+        status, message = "verification_failed", f"the open-loop replay diverged: {err}"
     if status == "solved" and not checked.passed():
         status = "verification_failed"
         message = (
@@ -102,39 +146,38 @@ def _collocation(problem: Problem) -> Solution:
     )
 
 
-def solve(problem: Problem) -> Solution:
-    """Solve a validated problem with its planner and verify the result.
+def _optimize(problem: Problem, partial: _Partial) -> Solution:
+    """The flat optimizer, then sampling and verification of its plan (or best iterate)."""
+    from .optimize import optimize
 
-    Returns
-    -------
-    Solution
-        Its ``status`` says whether it worked; failures never raise.
-    """
-    spec = problem.spec
-    verification = spec.verification
-    if problem.planner == "collocation":
-        return _collocation(problem)
-    if problem.planner == "optimize":
-        from .optimize import optimize
-
-        result = optimize(problem)
-        if result.plan is None:
-            return Solution(
-                problem.name,
-                result.status,
-                "optimize",
-                solver=result.solver,
-                message=result.solver.message,
-            )
-        return evaluate(
-            result.plan,
+    partial.reached("planning (flat optimizer)")
+    progress.ipopt_run("flat optimizer")
+    result = optimize(problem)
+    if result.plan is None:
+        return Solution(
             problem.name,
-            result.solver,
             result.status,
-            verification.samples,
-            verification.poles,
-            result.solver.message,
+            "optimize",
+            solver=result.solver,
+            message=result.solver.message,
         )
+    verification = problem.spec.verification
+    return _evaluate(
+        result.plan,
+        problem.name,
+        result.solver,
+        result.status,
+        verification.samples,
+        verification.poles,
+        result.solver.message,
+        partial,
+    )
+
+
+def _closed_form(problem: Problem, partial: _Partial) -> Solution:
+    """The paper's closed-form plan, then sampling and verification."""
+    spec = problem.spec
+    partial.reached("planning (closed form)")
     start = time.perf_counter()
     try:
         plan = closed_form(problem.arm, problem.nodes, spec.closed_form.smooth_torque)
@@ -149,4 +192,53 @@ def solve(problem: Problem) -> Solution:
     info = SolverInfo(
         build_time_s=0.0, solve_time_s=time.perf_counter() - start, message="closed form"
     )
-    return evaluate(plan, problem.name, info, "solved", verification.samples, verification.poles)
+    v = spec.verification
+    return _evaluate(plan, problem.name, info, "solved", v.samples, v.poles, "", partial)
+
+
+_PLANNERS = {"closed_form": _closed_form, "optimize": _optimize, "collocation": _collocation}
+
+
+def solve(problem: Problem) -> Solution:
+    """Solve a validated problem with its planner and verify the result, within its time limit.
+
+    Returns
+    -------
+    Solution
+        Its ``status`` says whether it worked; failures never raise. When the wall-clock
+        limit ``optimizer.solver.max_time`` runs out, the status is ``time_limit`` and the
+        solution holds what was done (the plan, when planning had finished).
+
+    Raises
+    ------
+    KeyboardInterrupt
+        On Ctrl-C (however CasADi reported it).
+    """
+    partial = _Partial()
+    budget = Budget(problem.max_time)
+    try:
+        with enforced(budget):
+            solution = _PLANNERS[problem.planner](problem, partial)
+    except TimeLimitExceeded:
+        return _time_limited(problem, budget, partial)
+    if budget.fired and not solution.ok:  # stopped inside Ipopt, which then returned
+        return _time_limited(problem, budget, partial)
+    return solution
+
+
+def _time_limited(problem: Problem, budget: Budget, partial: _Partial) -> Solution:
+    message = (
+        f"wall-clock limit of {budget.seconds:g} s reached while {partial.stage} "
+        f"(after {budget.elapsed:.3g} s); raise optimizer.solver.max_time or --time-limit"
+    )
+    progress.stage(message)
+    return Solution(
+        problem.name,
+        "time_limit",
+        problem.planner,
+        plan=partial.plan,
+        trajectory=partial.trajectory,
+        metrics=partial.metrics,
+        solver=partial.solver,
+        message=message,
+    )

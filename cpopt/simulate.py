@@ -18,10 +18,10 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from . import flat
 from .dynamics import arm_dynamics, inverse_dynamics
+from .integrate import DivergenceError, integrate
 from .kinematics import inverse_derivatives, inverse_position, joint_state, kinematic_functions
 from .mapping import mapped
 from .plan import CPPlan, Node
@@ -111,11 +111,8 @@ def _result(plan, mode, t, states, tau=None) -> SimulationResult:
 
 
 def _integrate(rhs, x0, t0, t1, samples, rtol, atol):
-    t_eval = np.linspace(t0, t1, samples)
-    sol = solve_ivp(rhs, (t0, t1), x0, method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
-    if not sol.success:
-        raise RuntimeError(f"simulation failed at t = {sol.t[-1]:.4g} s: {sol.message}")
-    return sol.t, sol.y.T
+    """Bounded DOP853 (:func:`cpopt.integrate.integrate`); raises DivergenceError."""
+    return integrate(rhs, x0, t0, t1, np.linspace(t0, t1, samples), rtol, atol)
 
 
 def simulate_reduced(
@@ -326,8 +323,51 @@ class Verification:
         }
 
 
-def verify(plan: CPPlan, residual: float, poles=DEFAULT_POLES) -> Verification:
-    """Run the three simulations of a plan.
+@dataclass(frozen=True)
+class DivergedVerification:
+    """Verification stopped: one simulation diverged (or crawled) and the rest were not run.
+
+    Attributes
+    ----------
+    mode : str
+        ``reduced``, ``closed_loop`` or ``open_loop``.
+    t : float
+        Simulated time where it stopped [s].
+    reason : str
+        What happened.
+    passive_torque_residual : float
+        Largest |torque| the plan asks of the passive joint [N m].
+    """
+
+    mode: str
+    t: float
+    reason: str
+    passive_torque_residual: float
+    max_cp_error = float("inf")
+    final_state_error = float("inf")
+
+    def passed(self, *args, **kwargs) -> bool:
+        """Never: the simulation did not reach the end of the plan."""
+        return False
+
+    def message(self) -> str:
+        """One line for ``solver.message``."""
+        return f"the {self.mode} simulation diverged at t = {self.t:.6g} s ({self.reason})"
+
+    def summary(self) -> dict:
+        """The figures written to ``solution.json``: where and why the simulation stopped."""
+        return {
+            "max_cp_error": None,
+            "final_state_error": None,
+            "passive_torque_residual": self.passive_torque_residual,
+            "diverged": {"simulation": self.mode, "t": self.t, "reason": self.reason},
+        }
+
+
+def verify(
+    plan: CPPlan, residual: float, poles=DEFAULT_POLES
+) -> Verification | DivergedVerification:
+    """Run the three simulations of a plan, each bounded (:mod:`cpopt.integrate`).
 
     Parameters
     ----------
@@ -337,10 +377,21 @@ def verify(plan: CPPlan, residual: float, poles=DEFAULT_POLES) -> Verification:
         Largest passive-joint torque of the sampled plan [N m] (from the trajectory).
     poles : sequence of float
         Tracking poles [1/s].
+
+    Returns
+    -------
+    Verification or DivergedVerification
+        The latter when a simulation diverged: which one, when and why.
     """
-    return Verification(
-        reduced=simulate_reduced(plan),
-        closed_loop=simulate_closed_loop(plan, poles=poles),
-        open_loop=simulate_open_loop(plan),
-        passive_torque_residual=float(residual),
-    )
+    runs = {
+        "reduced": lambda: simulate_reduced(plan),
+        "closed_loop": lambda: simulate_closed_loop(plan, poles=poles),
+        "open_loop": lambda: simulate_open_loop(plan),
+    }
+    results = {}
+    for mode, run in runs.items():
+        try:
+            results[mode] = run()
+        except DivergenceError as err:
+            return DivergedVerification(mode, err.t, err.reason, float(residual))
+    return Verification(**results, passive_torque_residual=float(residual))
