@@ -742,9 +742,18 @@ def load_problem(path: str | Path) -> Problem:
 
 
 def bundled_problems() -> list[Path]:
-    """The problem files shipped in ``problems/`` (next to the package in a checkout)."""
-    root = Path(__file__).resolve().parent.parent / "problems"
-    return sorted(root.glob("*.yaml"))
+    """The problem files shipped with cpopt.
+
+    They are package data, ``cpopt/problems/`` in an installed wheel; in a checkout that is a
+    link to ``problems/`` at the top (and ``problems/`` is used where links are not checked
+    out as links).
+    """
+    package = Path(__file__).resolve().parent
+    for root in (package / "problems", package.parent / "problems"):
+        files = sorted(root.glob("*.yaml"))
+        if files:
+            return files
+    return []
 
 
 __all__ = ["ARM_KINDS", "Problem", "ProblemError", "load_problem", "parse_problem"]
