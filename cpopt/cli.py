@@ -184,7 +184,7 @@ def _cmd_solve(args) -> int:
 
     matplotlib.use("Agg")
     from . import progress
-    from .pipeline import solve
+    from .isolate import solve_isolated
 
     out = Path(args.out)
     problems, bad_files = _problems(args.files)
@@ -199,7 +199,7 @@ def _cmd_solve(args) -> int:
         if args.time_limit is not None:
             problem = problem.with_time_limit(args.time_limit)
         with progress.reporting(reporter, problem.name):
-            solution = solve(problem)
+            solution = solve_isolated(problem)
             progress.stage("writing results")
             outdir = out / problem.name
             _write(solution, problem, outdir, args)

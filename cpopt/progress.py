@@ -39,7 +39,14 @@ class Progress:
         self.verbose = verbose and not quiet
         self.problem = ""
         self.start = time.monotonic()
+        self.listener = None  # called with every stage, shown or not (see cpopt.isolate)
         self._last_iteration = -ITERATION_EVERY
+
+    def stage(self, text: str) -> None:
+        """A stage reached: written, and passed to ``listener`` when there is one."""
+        if self.listener is not None:
+            self.listener(text)
+        self.write(text)
 
     def write(self, text: str) -> None:
         """One line, when enabled."""
@@ -72,9 +79,14 @@ def reporting(progress: Progress, problem: str) -> Iterator[Progress]:
         _current = previous
 
 
+def current() -> Progress:
+    """The reporter of the :func:`reporting` block being run (a silent one outside any)."""
+    return _current
+
+
 def stage(text: str) -> None:
     """Report the stage the work has reached (``planning``, ``verifying``, ...)."""
-    _current.write(text)
+    _current.stage(text)
 
 
 def ipopt_run(label: str) -> None:
@@ -88,4 +100,4 @@ def iteration(count: int, detail: str = "") -> None:
     _current.iteration(count, detail)
 
 
-__all__ = ["Progress", "ipopt_run", "iteration", "reporting", "stage"]
+__all__ = ["Progress", "current", "ipopt_run", "iteration", "reporting", "stage"]
