@@ -15,7 +15,14 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+)
 
 from . import flat
 from .dynamics import holding_torque
@@ -25,6 +32,14 @@ from .robot import ARM_KINDS, BRANCHES, G0, Arm, Link
 from .safe_yaml import YamlInputError, echo, key_path, read_yaml
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def _whole(value):
+    """``1e3`` (a float in YAML) where a count is expected: the integer 1000."""
+    return int(value) if isinstance(value, float) and value.is_integer() else value
+
+
+WHOLE = BeforeValidator(_whole)
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
@@ -127,9 +142,9 @@ DEFAULT_MAX_TIME = 300.0
 class SolverSpec(_Spec):
     """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]."""
 
-    max_iter: Annotated[int, Field(gt=0)] = 1000
+    max_iter: Annotated[int, WHOLE, Field(gt=0)] = 1000
     tol: Positive = 1e-8
-    print_level: Annotated[int, Field(ge=0, le=12)] = 0
+    print_level: Annotated[int, WHOLE, Field(ge=0, le=12)] = 0
     jit: bool = False
     mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
     max_time: Positive = DEFAULT_MAX_TIME
@@ -139,8 +154,8 @@ class OptimizerSpec(_Spec):
     """Optimizer settings (see docs/problems.md)."""
 
     curve: Literal["bspline", "polynomial"] = "bspline"
-    degree: Annotated[int, Field(ge=7, le=15)] = 8
-    coefficients: Annotated[int, Field(ge=8, le=60)] = 14
+    degree: Annotated[int, WHOLE, Field(ge=7, le=15)] = 8
+    coefficients: Annotated[int, WHOLE, Field(ge=8, le=60)] = 14
     objective: (
         Literal["torque", "energy", "v_squared", "duration", "gamma_margin"]
         | dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]
@@ -148,7 +163,7 @@ class OptimizerSpec(_Spec):
     gamma_min: Number = 2.0
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     smooth_torque: bool = True
-    samples: Annotated[int, Field(ge=10, le=1000)] = 40
+    samples: Annotated[int, WHOLE, Field(ge=10, le=1000)] = 40
     limits: LimitsSpec = LimitsSpec()
     free: dict[str, Pair(Number | None)] = {}
     solver: SolverSpec = SolverSpec()
@@ -168,10 +183,10 @@ class OptimizerSpec(_Spec):
 class CollocationSpec(_Spec):
     """Direct-collocation peer settings (see docs/problems.md)."""
 
-    intervals: Annotated[int, Field(ge=4, le=2000)] = 100
+    intervals: Annotated[int, WHOLE, Field(ge=4, le=2000)] = 100
     method: Literal["collocation", "multiple_shooting"] = "collocation"
-    degree: Annotated[int, Field(ge=1, le=9)] = 3
-    steps: Annotated[int, Field(ge=1, le=20)] = 1
+    degree: Annotated[int, WHOLE, Field(ge=1, le=9)] = 3
+    steps: Annotated[int, WHOLE, Field(ge=1, le=20)] = 1
     gamma_constraint: bool = True
     warm_start: Literal["none", "flat"] = "none"
     replay_tolerance: Positive = 1e-3
@@ -183,7 +198,7 @@ class VerificationSpec(_Spec):
     poles: Annotated[
         list[Annotated[float, Field(lt=0, allow_inf_nan=False)]], Field(min_length=4, max_length=4)
     ] = [-10.0, -10.0, -10.0, -10.0]
-    samples: Annotated[int, Field(ge=11, le=20001)] = 401
+    samples: Annotated[int, WHOLE, Field(ge=11, le=20001)] = 401
 
 
 NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}")
@@ -432,7 +447,7 @@ PHYSICAL_RANGES = {
     "optimizer.limits.joint_velocity[]": (0.0, 1e5, "deg/s or m/s"),
     "optimizer.solver.tol": (1e-12, 1.0, ""),
     "optimizer.solver.max_time": (0.0, 1e6, "s"),
-    "verification.poles[]": (-1e3, -1e-2, "1/s"),
+    "verification.poles[]": (-100.0, -1e-2, "1/s"),
 }
 """Values cpopt accepts, by key (``[]`` any index, ``<node>`` start, via[i] or goal): outside
 them the dynamics are so ill-conditioned that a solve or a simulation would only crawl."""

@@ -100,9 +100,10 @@ def test_scientific_notation_and_branch_none_are_accepted(tmp_path):
     text = (ROOT / "problems" / "rpr_transfer.yaml").read_text()
     text = text.replace("kind: RPR", "kind: RPR\n  branch: none").replace("mass: 4.0", "mass: 4e0")
     path = tmp_path / "p.yaml"
-    path.write_text(text + "optimizer:\n  solver: {tol: 1e-9, max_iter: 100}\n")
+    path.write_text(text + "optimizer:\n  solver: {tol: 1e-9, max_iter: 1e2}\n")
     problem = load_problem(path)
     assert problem.spec.optimizer.solver.tol == 1e-9
+    assert problem.spec.optimizer.solver.max_iter == 100  # a whole float where a count goes
     assert problem.arm.links[0].mass == 4.0 and problem.arm.branch is None
 
 
