@@ -717,7 +717,7 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
     source : str
         Shown in error messages.
     name : str, optional
-        Default name when the data has none.
+        Default name when the data has none (made a safe folder name, see :func:`safe_name`).
 
     Raises
     ------
@@ -736,7 +736,11 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
         raise ProblemError(source, path, message) from None
     arm, nodes = _check_physics(spec, source)
     return Problem(
-        name=spec.name or name or "problem", source=source, arm=arm, nodes=nodes, spec=spec
+        name=spec.name or safe_name(name or "problem"),
+        source=source,
+        arm=arm,
+        nodes=nodes,
+        spec=spec,
     )
 
 

@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from cpopt.cli import main
-from cpopt.problem import bundled_problems, load_problem
+from cpopt.problem import bundled_problems, load_problem, parse_problem
 from cpopt.results import CSV_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -351,3 +352,11 @@ def test_real_command_line_prints_no_traceback(tmp_path):
         [sys.executable, "-m", "cpopt.cli", "frobnicate"], capture_output=True, text=True, cwd=ROOT
     )
     assert run.returncode == 2 and "Traceback" not in run.stderr
+
+
+def test_a_file_name_becomes_a_safe_problem_name(tmp_path, capsys):
+    path = _write(tmp_path, GOOD.replace("name: good\n", ""), name="my problem (v2).yaml")
+    assert main(["check", str(path)]) == 0
+    assert "(my_problem__v2_: RRR arm" in capsys.readouterr().out
+    unnamed = yaml.safe_load(GOOD.replace("name: good\n", ""))
+    assert parse_problem(unnamed, name="../up").name == "_up"  # one folder, never a path
