@@ -19,7 +19,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from . import flat
+from . import flat, progress
 from .dynamics import arm_dynamics, inverse_dynamics
 from .integrate import STEPS_PER_SECOND, DivergenceError, integrate
 from .kinematics import inverse_derivatives, inverse_position, joint_state, kinematic_functions
@@ -393,6 +393,7 @@ def verify(
     }
     results = {}
     for mode, run in runs.items():
+        progress.stage(f"simulation: {mode.replace('_', ' ')}")
         try:
             results[mode] = run()
         except DivergenceError as err:
