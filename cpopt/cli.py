@@ -1,22 +1,37 @@
 """The ``cpopt`` command line: argument parsing and exit codes, nothing else.
 
 Exit codes: 0 every problem solved; 1 a solve failed (its status is still written);
-2 bad input (a file that does not validate, or wrong arguments). Bad input wins over a failure.
+2 bad input (a file that does not validate, two problems of one name, an output folder that
+cannot be written, wrong arguments), found before any solving; 130 interrupted (Ctrl-C).
+Bad input wins over a failure.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
 import sys
+import threading
 from pathlib import Path
 
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # argparse exits with 2 too; keep its usage line
         self.print_usage(sys.stderr)
         self.exit(EXIT_BAD_INPUT, f"cpopt: error: {message}\n")
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -38,11 +53,27 @@ def _parser() -> argparse.ArgumentParser:
     )
     solve.add_argument("--plot", action="store_true", help="also write PNG figures")
     solve.add_argument("--animate", action="store_true", help="also write arm.gif")
-    solve.add_argument("--verbose", action="store_true", help="show Ipopt's iterations")
+    solve.add_argument(
+        "--time-limit",
+        type=_seconds,
+        metavar="SECONDS",
+        help="wall-clock limit of each problem, planning and verification together "
+        "(default: the file's optimizer.solver.max_time, 300 s)",
+    )
+    solve.add_argument(
+        "--verbose", action="store_true", help="show Ipopt's iterations, each run labelled"
+    )
+    solve.add_argument(
+        "--quiet", action="store_true", help="no progress messages (shown on a terminal)"
+    )
     check = sub.add_parser("check", help="validate problem files without solving")
     check.add_argument("files", nargs="+", metavar="FILE")
     sub.add_parser("list", help="show the bundled problems")
     return parser
+
+
+def _error(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr, flush=True)
 
 
 def _load(path: str):
@@ -59,7 +90,7 @@ def _cmd_check(files) -> int:
     for path in files:
         problem, error = _load(path)
         if error:
-            print(f"error: {error}", file=sys.stderr)
+            _error(error)
             code = EXIT_BAD_INPUT
         else:
             print(
@@ -86,32 +117,92 @@ def _summary(solution, outdir: Path) -> str:
     return line + f"  -> {outdir}/"
 
 
-def _cmd_solve(args) -> int:
-    import matplotlib
+def _problems(files) -> tuple[list, bool]:
+    """The problems that load, one per name; and whether any input was bad."""
+    problems, seen, bad = [], {}, False
+    for path in files:
+        problem, error = _load(path)
+        if problem is not None and problem.name.casefold() in seen:
+            first = seen[problem.name.casefold()]
+            error = (
+                f"{path}: name: '{problem.name}' is also the name of {first} in this command; "
+                "both would write the same folder (give one another name)"
+            )
+        if error:
+            _error(error)
+            bad = True
+            continue
+        seen[problem.name.casefold()] = path
+        problems.append(problem)
+    return problems, bad
 
-    matplotlib.use("Agg")
-    from .pipeline import solve
+
+def _outputs(problems, out: Path) -> tuple[list, bool]:
+    """Create the output folder and check each problem's folder, before any solving."""
+    from .output import OutputError, check_problem_directory, make_directory
+
+    if not problems:
+        return [], False
+    try:
+        make_directory(out)
+    except OutputError as err:
+        _error(f"--out {err}")
+        return [], True
+    usable, bad = [], False
+    for problem in problems:
+        try:
+            check_problem_directory(out / problem.name)
+            usable.append(problem)
+        except OutputError as err:
+            _error(f"{problem.source}: name: {err}")
+            bad = True
+    return usable, bad
+
+
+def _write(solution, problem, outdir: Path, args) -> None:
+    """Replace the problem's results: old ones go first, the JSON is written last."""
+    from .output import clear, locked, make_directory
     from .results import write_solution
 
-    code = EXIT_OK
-    for path in args.files:
-        problem, error = _load(path)
-        if error:
-            print(f"error: {error}", file=sys.stderr)
-            code = EXIT_BAD_INPUT
-            continue
-        if args.verbose:
-            problem = problem.with_print_level(5)
-        solution = solve(problem)
-        outdir = Path(args.out) / problem.name
-        write_solution(solution, outdir)
+    make_directory(outdir)
+    with locked(outdir):
+        clear(outdir)  # no figure of an earlier run stays beside this one's status
         if solution.ok and (args.plot or args.animate):
             from .plotting import animate, write_figures
 
             if args.plot:
-                write_figures(solution, outdir)
+                o = problem.spec.optimizer
+                gamma_min = None if problem.planner == "closed_form" else o.gamma_min
+                write_figures(solution, outdir, o.limits.torque, gamma_min)
             if args.animate:
                 animate(solution, outdir / "arm.gif")
+        write_solution(solution, outdir)
+
+
+def _cmd_solve(args) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from . import progress
+    from .isolate import solve_isolated
+
+    out = Path(args.out)
+    problems, bad_files = _problems(args.files)
+    problems, bad_outputs = _outputs(problems, out)
+    if bad_outputs and not problems:
+        return EXIT_BAD_INPUT
+    reporter = progress.Progress(quiet=args.quiet, verbose=args.verbose)
+    code = EXIT_BAD_INPUT if bad_files or bad_outputs else EXIT_OK
+    for problem in problems:
+        if args.verbose:
+            problem = problem.with_print_level(5)
+        if args.time_limit is not None:
+            problem = problem.with_time_limit(args.time_limit)
+        with progress.reporting(reporter, problem.name):
+            solution = solve_isolated(problem)
+            progress.stage("writing results")
+            outdir = out / problem.name
+            _write(solution, problem, outdir, args)
         print(_summary(solution, outdir), flush=True)
         if not solution.ok and code == EXIT_OK:
             code = EXIT_FAILED
@@ -131,15 +222,52 @@ def _cmd_list() -> int:
     return EXIT_OK
 
 
+_announced = threading.Lock()
+
+
+def _interrupted() -> None:
+    """The one line of a Ctrl-C (said once, by whichever of main and the watcher is first)."""
+    from .output import remove_temporaries
+
+    remove_temporaries()
+    if _announced.acquire(blocking=False):
+        print("cpopt: interrupted", file=sys.stderr, flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``cpopt`` command; returns the exit code."""
-    args = _parser().parse_args(argv)
-    if args.command == "check":
-        return _cmd_check(args.files)
-    if args.command == "list":
-        return _cmd_list()
-    return _cmd_solve(args)
+    from .budget import hard_stop_on_interrupt
+
+    try:
+        with hard_stop_on_interrupt(_interrupted, code=EXIT_INTERRUPTED):
+            args = _parser().parse_args(argv)
+            if args.command == "check":
+                return _cmd_check(args.files)
+            if args.command == "list":
+                return _cmd_list()
+            return _cmd_solve(args)
+    except KeyboardInterrupt:
+        _interrupted()
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `cpopt list | head`: the reader left; so do we, quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_FAILED
+
+
+def run() -> None:
+    """The ``cpopt`` process: :func:`main`, then exit with its code.
+
+    After Ctrl-C the process ends with ``os._exit(130)``: CPython may otherwise turn a
+    KeyboardInterrupt that was caught inside an interrupted import into death by SIGINT at
+    shutdown (exit status -2 instead of 130).
+    """
+    code = main()
+    if code == EXIT_INTERRUPTED:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -1,18 +1,44 @@
-"""One problem through every stage: plan, sample, measure, verify by simulation."""
+"""One problem through every stage: plan, sample, measure, verify by simulation.
+
+The whole of it runs under the problem's wall-clock budget (``optimizer.solver.max_time``,
+see :mod:`cpopt.budget`): when it runs out, the solution so far is returned with status
+``time_limit``. Each stage is reported to :mod:`cpopt.progress`.
+"""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 
+from . import progress
+from .budget import Budget, TimeLimitExceeded, enforced
 from .kinematics import ReachError
 from .plan import CPPlan, SingularPlanError, closed_form
 from .problem import Problem
 from .results import Solution
-from .simulate import verify
+from .simulate import DivergedVerification, verify
 from .solver import SolverStats
 from .trajectory import metrics, sample
+
+
+@dataclass
+class StageRecord:
+    """What the stages of one solve have produced so far (kept for a solve stopped by the
+    time limit), and the stage reached."""
+
+    stage: str = "planning"
+    plan: object = None
+    trajectory: object = None
+    metrics: object = None
+    solver: SolverStats = field(default_factory=SolverStats)
+
+    def reached(self, stage: str, **done) -> None:
+        """Enter a stage (reported to :mod:`cpopt.progress`), keeping what was ``done``."""
+        self.stage = stage
+        for key, value in done.items():
+            setattr(self, key, value)
+        progress.stage(stage)
 
 
 def evaluate(
@@ -43,6 +69,11 @@ def evaluate(
     message : str
         The planner's message.
     """
+    return _evaluate(plan, name, solver, status, samples, poles, message, StageRecord())
+
+
+def _evaluate(plan, name, solver, status, samples, poles, message, partial) -> Solution:
+    partial.reached("sampling the plan", plan=plan, solver=solver)
     try:
         traj = sample(plan, per_phase=samples)
     except ReachError as err:
@@ -50,15 +81,19 @@ def evaluate(
             name, "unreachable", plan.planner, plan=plan, solver=solver, message=str(err)
         )
     measured = metrics(plan, traj)
+    partial.reached("verifying by simulation", trajectory=traj, metrics=measured)
     checked = verify(plan, measured.max_passive_residual, poles)
     if status == "solved" and not checked.passed():
         status = "verification_failed"
-        message = (
-            f"simulation does not reproduce the plan: CP error "
-            f"{checked.max_cp_error:.3g} m, final state error "
-            f"{checked.final_state_error:.3g}, reduced-model CP error "
-            f"{checked.reduced.max_cp_error:.3g} m"
-        )
+        if isinstance(checked, DivergedVerification):
+            message = checked.message()
+        else:
+            message = (
+                f"simulation does not reproduce the plan: CP error "
+                f"{checked.max_cp_error:.3g} m, final state error "
+                f"{checked.final_state_error:.3g}, reduced-model CP error "
+                f"{checked.reduced.max_cp_error:.3g} m"
+            )
     return Solution(
         name,
         status,
@@ -72,53 +107,30 @@ def evaluate(
     )
 
 
-def plan_closed_form(problem: Problem) -> Solution:
-    """The paper's closed-form plan through the problem's nodes, verified."""
-    start = time.perf_counter()
-    try:
-        plan = closed_form(problem.arm, problem.nodes, problem.spec.closed_form.smooth_torque)
-    except SingularPlanError as err:
-        return Solution(
-            problem.name,
-            "singular",
-            "closed_form",
-            message=str(err),
-            solver=SolverStats(message=str(err)),
-        )
-    stats = SolverStats(solve_time_s=time.perf_counter() - start, message="closed form")
-    return _evaluate_for(problem, plan, stats, "solved", "")
-
-
-def plan_optimized(problem: Problem) -> Solution:
-    """The flat optimizer's plan (or its best iterate, with the failure's status), verified."""
-    from .flatopt import optimize
-
-    result = optimize(problem)
-    if result.plan is None:
-        return Solution(
-            problem.name,
-            result.status,
-            "optimize",
-            solver=result.solver,
-            message=result.solver.message,
-        )
-    return _evaluate_for(problem, result.plan, result.solver, result.status, result.solver.message)
-
-
-def plan_collocation(problem: Problem) -> Solution:
+def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
     """The collocation peer: warm start (optional), solve, sample, replay open loop."""
     from .collocation import collocate, joint_metrics, joint_trajectory, replay
+    from .integrate import DivergenceError
 
     warm = None
     if problem.spec.collocation.warm_start == "flat":
         from .flatopt import optimize
 
+        partial.reached("warm start (flat optimizer)")
+        progress.ipopt_run("flat optimizer (warm start of collocation)")
         warm = optimize(problem).plan
+    partial.reached("planning (collocation)")
+    progress.ipopt_run("direct collocation")
     result = collocate(problem, warm_start=warm)
     plan = result.plan
     traj = joint_trajectory(plan)
-    checked = replay(plan, problem.nodes[-1], problem.spec.collocation.replay_tolerance)
+    partial.reached("open-loop replay", plan=plan, trajectory=traj, solver=result.solver)
     status, message = result.status, result.solver.message
+    try:
+        checked = replay(plan, problem.nodes[-1], problem.spec.collocation.replay_tolerance)
+    except DivergenceError as err:
+        checked = None
+        status, message = "verification_failed", f"the open-loop replay diverged: {err}"
     if status == "solved" and not checked.passed():
         status = "verification_failed"
         message = (
@@ -138,36 +150,109 @@ def plan_collocation(problem: Problem) -> Solution:
     )
 
 
-def _evaluate_for(
-    problem: Problem, plan: CPPlan, stats: SolverStats, status: str, message: str
-) -> Solution:
-    """:func:`evaluate` with the problem's verification settings."""
+def plan_optimized(problem: Problem, partial: StageRecord) -> Solution:
+    """The flat optimizer, then sampling and verification of its plan (or best iterate)."""
+    from .flatopt import optimize
+
+    partial.reached("planning (flat optimizer)")
+    progress.ipopt_run("flat optimizer")
+    result = optimize(problem)
+    if result.plan is None:
+        return Solution(
+            problem.name,
+            result.status,
+            "optimize",
+            solver=result.solver,
+            message=result.solver.message,
+        )
     verification = problem.spec.verification
-    return evaluate(
-        plan, problem.name, stats, status, verification.samples, verification.poles, message
+    return _evaluate(
+        result.plan,
+        problem.name,
+        result.solver,
+        result.status,
+        verification.samples,
+        verification.poles,
+        result.solver.message,
+        partial,
     )
 
 
-PLANNERS: dict[str, Callable[[Problem], Solution]] = {
+def plan_closed_form(problem: Problem, partial: StageRecord) -> Solution:
+    """The paper's closed-form plan, then sampling and verification."""
+    spec = problem.spec
+    partial.reached("planning (closed form)")
+    start = time.perf_counter()
+    try:
+        plan = closed_form(problem.arm, problem.nodes, spec.closed_form.smooth_torque)
+    except SingularPlanError as err:
+        return Solution(
+            problem.name,
+            "singular",
+            "closed_form",
+            message=str(err),
+            solver=SolverStats(message=str(err)),
+        )
+    info = SolverStats(solve_time_s=time.perf_counter() - start, message="closed form")
+    v = spec.verification
+    return _evaluate(plan, problem.name, info, "solved", v.samples, v.poles, "", partial)
+
+
+PLANNERS: dict[str, Callable[[Problem, StageRecord], Solution]] = {
     "closed_form": plan_closed_form,
     "optimize": plan_optimized,
     "collocation": plan_collocation,
 }
-"""The planners by the name ``planner:`` gives in a problem file."""
+"""The planners by the name ``planner:`` gives in a problem file: each plans, samples and
+verifies, recording its stages."""
 
 
 def solve(problem: Problem) -> Solution:
-    """Solve a validated problem with its planner, verify the result and, when the problem
-    has a ``tracking`` block, track the solved plan on its plant.
+    """Solve a validated problem with its planner and verify the result, within its time limit;
+    with a ``tracking`` block, also track the solved plan on its plant.
 
     Returns
     -------
     Solution
-        Its ``status`` says whether it worked; failures never raise.
-    """
-    solution = PLANNERS[problem.planner](problem)
-    if problem.spec.tracking is not None and solution.ok:
-        from .tracking import track_problem
+        Its ``status`` says whether it worked; failures never raise. When the wall-clock
+        limit ``optimizer.solver.max_time`` runs out, the status is ``time_limit`` and the
+        solution holds what was done (the plan, when planning had finished).
 
-        solution = replace(solution, tracking=track_problem(problem, solution.plan))
+    Raises
+    ------
+    KeyboardInterrupt
+        On Ctrl-C (however CasADi reported it).
+    """
+    partial = StageRecord()
+    budget = Budget(problem.max_time)
+    try:
+        with enforced(budget):
+            solution = PLANNERS[problem.planner](problem, partial)
+            if problem.spec.tracking is not None and solution.ok:
+                from .tracking import track_problem
+
+                partial.reached("tracking on the plant")
+                solution = replace(solution, tracking=track_problem(problem, solution.plan))
+    except TimeLimitExceeded:
+        return _time_limited(problem, budget, partial)
+    if budget.fired and not solution.ok:  # stopped inside Ipopt, which then returned
+        return _time_limited(problem, budget, partial)
     return solution
+
+
+def _time_limited(problem: Problem, budget: Budget, partial: StageRecord) -> Solution:
+    message = (
+        f"wall-clock limit of {budget.seconds:g} s reached while {partial.stage} "
+        f"(after {budget.elapsed:.3g} s); raise optimizer.solver.max_time or --time-limit"
+    )
+    progress.stage(message)
+    return Solution(
+        problem.name,
+        "time_limit",
+        problem.planner,
+        plan=partial.plan,
+        trajectory=partial.trajectory,
+        metrics=partial.metrics,
+        solver=partial.solver,
+        message=message,
+    )

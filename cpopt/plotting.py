@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from .kinematics import kinematic_functions
+from .output import atomic_path
 from .results import Solution
 from .tracking import TrackingOutcome
 from .trajectory import Trajectory
@@ -72,16 +73,38 @@ def plot_arm(solution: Solution, ax=None, strobes: int = 15):
     return fig
 
 
-def plot_torques(solution: Solution, ax=None):
-    """Torques tau1 (solid) and tau2 (dashed) over time. Returns the figure."""
+def _torque_units(kind: str) -> tuple[list[str], str]:
+    """Units of tau1, tau2 (N m for a revolute joint, N for a prismatic one) and the axis label."""
+    units = ["N" if c == "P" else "N m" for c in kind[:2]]
+    names = {"N m": "torque [N m]", "N": "force [N]"}
+    label = names[units[0]] if units[0] == units[1] else "torque [N m] / force [N]"
+    return units, label
+
+
+def plot_torques(solution: Solution, ax=None, limits=None):
+    """Torques tau1 (solid) and tau2 (dashed) over time, with their limits. Returns the figure.
+
+    Parameters
+    ----------
+    solution : Solution
+        A solution with a trajectory.
+    ax : matplotlib.axes.Axes, optional
+        Where to draw (a new figure otherwise).
+    limits : sequence of float or None, optional
+        |tau1|, |tau2| limits [N m or N] (``optimizer.limits.torque``), drawn as red lines.
+    """
     traj = solution.trajectory
     fig, (a,) = _axes(ax, 1, size=(6, 3.2))
-    kinds = solution.plan.arm.kind
-    unit = ["N" if c == "P" else "N m" for c in kinds[:2]]
-    a.plot(traj.t, traj.tau[:, 0], "k-", label=f"tau1 [{unit[0]}]")
-    a.plot(traj.t, traj.tau[:, 1], "k--", label=f"tau2 [{unit[1]}]")
+    units, label = _torque_units(solution.plan.arm.kind)
+    styles = ("-", "--")
+    for i in range(2):
+        a.plot(traj.t, traj.tau[:, i], "k" + styles[i], label=f"tau{i + 1} [{units[i]}]")
+    for i, tmax in enumerate(limits or ()):
+        if tmax is not None:
+            a.axhline(tmax, color="r", ls=styles[i], lw=0.9, label=f"|tau{i + 1}| limit")
+            a.axhline(-tmax, color="r", ls=styles[i], lw=0.9)
     a.set_xlabel("t [s]")
-    a.set_ylabel("torque")
+    a.set_ylabel(label)
     a.set_title(f"{solution.name}: torques")
     a.grid(alpha=0.3)
     a.legend(fontsize="small")
@@ -89,7 +112,10 @@ def plot_torques(solution: Solution, ax=None):
 
 
 def plot_gamma(solution: Solution, ax=None, gamma_min: float | None = None):
-    """gamma over time with the certified minimum of |gamma|. Returns the figure."""
+    """gamma [m/s^2] over time with the certified minimum of |gamma| and +-gamma_min.
+
+    Returns the figure.
+    """
     traj = solution.trajectory
     fig, (a,) = _axes(ax, 1, size=(6, 3.2))
     a.plot(traj.t, traj.gamma, "b-", label="gamma")
@@ -103,8 +129,8 @@ def plot_gamma(solution: Solution, ax=None, gamma_min: float | None = None):
             label=f"min |gamma| = {m.min_abs_gamma:.3g}",
         )
     if gamma_min:
-        for s in (-1, 1):
-            a.axhline(s * gamma_min, color="r", ls=":", lw=0.8)
+        a.axhline(gamma_min, color="r", ls=":", lw=0.9, label=f"+-gamma_min = {gamma_min:g}")
+        a.axhline(-gamma_min, color="r", ls=":", lw=0.9)
     a.set_xlabel("t [s]")
     a.set_ylabel("gamma [m/s^2]")
     a.set_title(f"{solution.name}: regularity margin")
@@ -152,9 +178,25 @@ def _axes(ax, count: int, size=(6, 4)):
     return fig, list(axes[:, 0])
 
 
-def write_figures(solution: Solution, directory: str | Path) -> list[Path]:
+def write_figures(
+    solution: Solution,
+    directory: str | Path,
+    torque_limits=None,
+    gamma_min: float | None = None,
+) -> list[Path]:
     """Write ``third_link.png``, ``arm.png``, ``torques.png``, ``gamma.png`` and, for a
-    tracked plan, ``tracking.png``.
+    tracked plan, ``tracking.png``, each whole.
+
+    Parameters
+    ----------
+    solution : Solution
+        A solution with a trajectory.
+    directory : str or Path
+        The problem's folder.
+    torque_limits : sequence of float or None, optional
+        Limits drawn on ``torques.png`` [N m or N].
+    gamma_min : float, optional
+        The margin drawn on ``gamma.png`` [m/s^2].
 
     Returns
     -------
@@ -167,19 +209,20 @@ def write_figures(solution: Solution, directory: str | Path) -> list[Path]:
     figures = [
         ("third_link", plot_third_link),
         ("arm", plot_arm),
-        ("torques", plot_torques),
-        ("gamma", plot_gamma),
+        ("torques", lambda s: plot_torques(s, limits=torque_limits)),
+        ("gamma", lambda s: plot_gamma(s, gamma_min=gamma_min)),
     ]
     if isinstance(solution.tracking, TrackingOutcome):
         figures.append(("tracking", plot_tracking))
-    for name, fn in figures:
-        fig = fn(solution)
-        fig.tight_layout()
-        path = directory / f"{name}.png"
-        tmp = directory / f".{name}.tmp.png"
-        fig.savefig(tmp, dpi=110)
-        tmp.replace(path)
-        plt.close(fig)
+    for name, draw in figures:
+        fig = draw(solution)
+        try:
+            fig.tight_layout()
+            path = directory / f"{name}.png"
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, dpi=110)
+        finally:
+            plt.close(fig)
         written.append(path)
     return written
 
@@ -213,8 +256,11 @@ def animate(solution: Solution, path: str | Path, fps: int = 25, trail: bool = T
     ax.set_aspect("equal")
     ax.grid(alpha=0.3)
     ax.set_title(solution.name)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
     if trail:
-        ax.plot(traj.cp[:, 0, 0], traj.cp[:, 1, 0], "r-", lw=0.8, alpha=0.6)
+        ax.plot(traj.cp[:, 0, 0], traj.cp[:, 1, 0], "r-", lw=0.8, alpha=0.6, label="CP path")
+        ax.legend(loc="upper right", fontsize="small")
     (line,) = ax.plot([], [], "-o", color="k", lw=2, ms=4)
     label = ax.text(0.02, 0.95, "", transform=ax.transAxes)
 
@@ -226,8 +272,9 @@ def animate(solution: Solution, path: str | Path, fps: int = 25, trail: bool = T
 
     anim = FuncAnimation(fig, draw, frames=frames, blit=True)
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp.gif")
-    anim.save(tmp, writer=PillowWriter(fps=fps))
-    tmp.replace(path)
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            anim.save(tmp, writer=PillowWriter(fps=fps))
+    finally:
+        plt.close(fig)
     return path

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 import typing
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -16,20 +17,36 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+)
 
 from . import flat
+from .dynamics import holding_torque
 from .kinematics import ReachError, inverse_derivatives, inverse_position
 from .limits import Limit, arm_limits
 from .nodes import free_value_names, gamma_is_free, node_values, si_bounds
 from .objectives import COLLOCATION_OBJECTIVES, OBJECTIVES, weights
 from .plan import GAMMA_ZERO, Node
-from .robot import ARM_KINDS, BRANCHES, Arm, Link
+from .robot import ARM_KINDS, BRANCHES, G0, Arm, Link
+from .safe_yaml import YamlInputError, echo, key_path, read_yaml
 from .tracking.dfl import DEFAULT_POLES
 from .tracking.tvlqr import DEFAULT_Q, DEFAULT_QF, DEFAULT_R
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def _whole(value):
+    """``1e3`` (a float in YAML) where a count is expected: the integer 1000."""
+    return int(value) if isinstance(value, float) and value.is_integer() else value
+
+
+WHOLE = BeforeValidator(_whole)
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
@@ -122,29 +139,34 @@ class LimitsSpec(_Spec):
     joint_velocity: Triple(Positive | None) | None = None
 
 
-class SolverSpec(_Spec):
-    """Ipopt settings."""
+DEFAULT_MAX_TIME = 300.0
+"""Default wall-clock limit of one problem [s]: planning and verification together."""
 
-    max_iter: Annotated[int, Field(gt=0)] = 1000
+
+class SolverSpec(_Spec):
+    """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]."""
+
+    max_iter: Annotated[int, WHOLE, Field(gt=0)] = 1000
     tol: Positive = 1e-8
-    print_level: Annotated[int, Field(ge=0, le=12)] = 0
+    print_level: Annotated[int, WHOLE, Field(ge=0, le=12)] = 0
     jit: bool = False
     mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
+    max_time: Positive = DEFAULT_MAX_TIME
 
 
 class OptimizerSpec(_Spec):
     """Optimizer settings (see docs/problems.md)."""
 
     curve: Literal["bspline", "polynomial"] = "bspline"
-    degree: Annotated[int, Field(ge=7, le=15)] = 8
-    coefficients: Annotated[int, Field(ge=8, le=60)] = 14
+    degree: Annotated[int, WHOLE, Field(ge=7, le=15)] = 8
+    coefficients: Annotated[int, WHOLE, Field(ge=8, le=60)] = 14
     objective: (
         Literal[OBJECTIVES] | dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]
     ) = "torque"
-    gamma_min: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 2.0
+    gamma_min: Number = 2.0
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     smooth_torque: bool = True
-    samples: Annotated[int, Field(ge=10, le=1000)] = 40
+    samples: Annotated[int, WHOLE, Field(ge=10, le=1000)] = 40
     limits: LimitsSpec = LimitsSpec()
     free: dict[str, Pair(Number | None)] = {}
     solver: SolverSpec = SolverSpec()
@@ -164,10 +186,10 @@ class OptimizerSpec(_Spec):
 class CollocationSpec(_Spec):
     """Direct-collocation peer settings (see docs/problems.md)."""
 
-    intervals: Annotated[int, Field(ge=4, le=2000)] = 100
+    intervals: Annotated[int, WHOLE, Field(ge=4, le=2000)] = 100
     method: Literal["collocation", "multiple_shooting"] = "collocation"
-    degree: Annotated[int, Field(ge=1, le=9)] = 3
-    steps: Annotated[int, Field(ge=1, le=20)] = 1
+    degree: Annotated[int, WHOLE, Field(ge=1, le=9)] = 3
+    steps: Annotated[int, WHOLE, Field(ge=1, le=20)] = 1
     gamma_constraint: bool = True
     warm_start: Literal["none", "flat"] = "none"
     replay_tolerance: Positive = 1e-3
@@ -179,7 +201,17 @@ class VerificationSpec(_Spec):
     poles: Annotated[
         list[Annotated[float, Field(lt=0, allow_inf_nan=False)]], Field(min_length=4, max_length=4)
     ] = [-10.0, -10.0, -10.0, -10.0]
-    samples: Annotated[int, Field(ge=11, le=20001)] = 401
+    samples: Annotated[int, WHOLE, Field(ge=11, le=20001)] = 401
+
+
+NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}")
+"""A problem name: one safe folder name under ``--out`` (no '/', not '.' or '..')."""
+
+
+def safe_name(text: str) -> str:
+    """A file stem turned into a valid problem name (unsafe characters become '_')."""
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", text).lstrip(".-")[:100]
+    return name or "problem"
 
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -246,6 +278,16 @@ class ProblemSpec(_Spec):
     verification: VerificationSpec = VerificationSpec()
     tracking: TrackingSpec | None = None
 
+    @field_validator("name")
+    @classmethod
+    def _safe_name(cls, value):
+        if value is not None and not NAME.fullmatch(value):
+            raise ValueError(
+                "the name becomes a folder under --out: use letters, digits, '_', '.' and '-' "
+                "(at most 100, the first a letter, digit or '_'; no '/', '.' or '..')"
+            )
+        return value
+
 
 @dataclass(frozen=True)
 class Problem:
@@ -288,22 +330,24 @@ class Problem:
         """Planner to run: ``closed_form`` or ``optimize``."""
         return self.spec.planner
 
+    @property
+    def max_time(self) -> float:
+        """Wall-clock limit of planning and verification together [s]."""
+        return self.spec.optimizer.solver.max_time
+
     def with_print_level(self, level: int) -> Problem:
         """A copy whose Ipopt output level is ``level`` (0 silent .. 12)."""
+        return self._with_solver(print_level=level)
+
+    def with_time_limit(self, seconds: float) -> Problem:
+        """A copy whose wall-clock limit ``optimizer.solver.max_time`` is ``seconds``."""
+        return self._with_solver(max_time=float(seconds))
+
+    def _with_solver(self, **update) -> Problem:
         opt = self.spec.optimizer
-        solver = opt.solver.model_copy(update={"print_level": level})
+        solver = opt.solver.model_copy(update=update)
         spec = self.spec.model_copy(update={"optimizer": opt.model_copy(update={"solver": solver})})
         return replace(self, spec=spec)
-
-
-def _key_path(loc) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out
 
 
 def _model_in(annotation) -> type[BaseModel] | None:
@@ -331,19 +375,30 @@ def _allowed_keys(loc) -> list[str]:
 
 def _describe(error: dict) -> tuple[str, str]:
     loc = tuple(p for p in error["loc"] if not (isinstance(p, str) and "[" in p))
-    path = _key_path(loc)
+    path = key_path(loc)
     kind = error["type"]
     given = error.get("input")
     if kind == "extra_forbidden":
         allowed = _allowed_keys(loc)
-        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-        return path, f"unknown key{hint} (allowed here: {', '.join(allowed)})"
+        return (
+            path,
+            f"unknown key{_suggestion(str(loc[-1]), allowed)} (allowed here: {', '.join(allowed)})",
+        )
     if kind == "missing":
         return path, "required key is missing"
     msg = error["msg"]
     msg = msg[0].lower() + msg[1:]
-    return path, f"{msg}, got {given!r}"
+    return path, f"{msg}, got {echo(given)}"
+
+
+def _suggestion(given: str, allowed: list[str]) -> str:
+    """``; did you mean 'theta_deg'?``: a name that only lacks its unit first, then the closest."""
+    low = given.lower()
+    for name in allowed:
+        if low in (name.lower(), name.lower().removesuffix("_deg")):
+            return f"; did you mean '{name}'?"
+    close = difflib.get_close_matches(given, allowed, n=1)
+    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def _node(state: StateSpec, t: float) -> Node:
@@ -362,28 +417,8 @@ def _node(state: StateSpec, t: float) -> Node:
 
 
 def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...]]:
-    a = spec.arm
-    allowed = BRANCHES[a.kind]
-    if a.branch not in allowed and a.branch is not None:
-        choices = ", ".join(str(b) for b in allowed)
-        raise ProblemError(
-            source, "arm.branch", f"a {a.kind} arm has branches {choices}, got {a.branch!r}"
-        )
-    for i, link in enumerate(a.links):
-        if i == 2 and link.com is not None and link.com <= 0:
-            raise ProblemError(
-                source,
-                "arm.links[2].com",
-                f"the third link's centre of mass must lie beyond its joint "
-                f"(> 0 m), got {link.com!r}",
-            )
-    arm = Arm(
-        kind=a.kind,
-        links=tuple(Link(l.length, l.mass, l.com, l.inertia) for l in a.links),  # noqa: E741
-        base=a.base,
-        gravity=a.gravity,
-        branch=a.branch,
-    )
+    _check_ranges(spec, source)
+    arm = _arm(spec.arm, source)
     m = spec.motion
     T = m.duration
     prev = 0.0
@@ -398,32 +433,13 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
         prev = via.t
     nodes = (_node(m.start, 0.0), *(_node(v, v.t) for v in m.via), _node(m.goal, T))
     paths = ["motion.start", *(f"motion.via[{i}]" for i in range(len(m.via))), "motion.goal"]
-    for node, path in zip(nodes, paths, strict=True):
-        try:
-            q = inverse_position(arm, node.x, node.y, node.theta)
-            inverse_derivatives(
-                arm, q, np.array([[node.xdot, node.ydot, node.thetadot]]), np.zeros((1, 3))
-            )
-        except ReachError as err:
-            raise ProblemError(source, path, f"state not reachable: {err}") from None
+    joints = [_joint_position(arm, n, p, source) for n, p in zip(nodes, paths, strict=True)]
+    _check_limits(spec, arm, nodes, joints, source)
     free = spec.optimizer.free if spec.planner != "closed_form" else {}
-    names = free_value_names(len(spec.motion.via))
-    for name, (lo, hi) in free.items():
-        if name not in names:
-            close = difflib.get_close_matches(name, names, n=1)
-            hint = f"; did you mean '{close[0]}'?" if close else ""
-            raise ProblemError(
-                source,
-                f"optimizer.free.{name}",
-                f"not a value of this problem{hint} (names: {', '.join(names)})",
-            )
-        if lo is not None and hi is not None and lo > hi:
-            raise ProblemError(
-                source, f"optimizer.free.{name}", f"lower bound {lo:g} exceeds upper bound {hi:g}"
-            )
+    _check_free(spec, free, source)
     flat_plan = spec.planner != "collocation" or spec.collocation.warm_start == "flat"
     if flat_plan:
-        _check_gamma(arm, nodes, paths, free, source)
+        _check_gamma(spec, arm, nodes, paths, free, source)
     if spec.planner != "closed_form" and flat_plan:
         _check_optimizer(spec, len(nodes) - 1, source)
     if spec.planner == "collocation":
@@ -433,17 +449,222 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
     return arm, nodes
 
 
+def _arm(a: ArmSpec, source: str) -> Arm:
+    """The arm of the file, with ``branch: none`` read as the single branch of RPR and PPR."""
+    allowed = BRANCHES[a.kind]
+    branch = None if a.branch is None or a.branch.lower() == "none" else a.branch
+    if a.branch is not None and branch not in allowed:
+        choices = ", ".join("none" if b is None else b for b in allowed)
+        raise ProblemError(
+            source, "arm.branch", f"a {a.kind} arm has branches {choices}, got {echo(a.branch)}"
+        )
+    arm = Arm(
+        kind=a.kind,
+        links=tuple(Link(l.length, l.mass, l.com, l.inertia) for l in a.links),  # noqa: E741
+        base=a.base,
+        gravity=a.gravity,
+        branch=branch,
+    )
+    l3 = a.links[2].length
+    if arm.K / l3 > 100:  # (I3 + m3 d3^2) / (m3 d3) grows without bound as d3 -> 0
+        raise ProblemError(
+            source,
+            "arm.links[2].com" if a.links[2].com is not None else "arm.links[2].inertia",
+            f"the centre of percussion lies K = {arm.K:.4g} m from the third joint, more than "
+            f"100 link lengths ({100 * l3:g} m): the centre of mass is too close to the joint "
+            "for its inertia",
+        )
+    return arm
+
+
+def _joint_position(arm: Arm, node: Node, path: str, source: str) -> np.ndarray:
+    """The joint position (3,) of a node's state, or a ProblemError when it is out of reach."""
+    try:
+        q = inverse_position(arm, node.x, node.y, node.theta)
+        inverse_derivatives(
+            arm, q, np.array([[node.xdot, node.ydot, node.thetadot]]), np.zeros((1, 3))
+        )
+    except ReachError as err:
+        raise ProblemError(source, path, f"state not reachable: {err}") from None
+    return np.asarray(q, float).ravel()
+
+
+PHYSICAL_RANGES = {
+    "arm.base[]": (-1e3, 1e3, "m"),
+    "arm.gravity": (0.1, 100.0, "m/s^2"),
+    "arm.links[].length": (1e-3, 100.0, "m"),
+    "arm.links[].mass": (1e-3, 1e4, "kg"),
+    "motion.duration": (0.01, 1e4, "s"),
+    "motion.<node>.theta_deg": (-3600.0, 3600.0, "deg"),
+    "motion.<node>.xdot": (-1e3, 1e3, "m/s"),
+    "motion.<node>.ydot": (-1e3, 1e3, "m/s"),
+    "motion.<node>.thetadot_deg": (-1e5, 1e5, "deg/s"),
+    "motion.<node>.xi": (-1e4, 1e4, "m/s^2"),
+    "motion.<node>.eta": (-1e6, 1e6, "m/s^3"),
+    "motion.<node>.eta_after": (-1e6, 1e6, "m/s^3"),
+    "optimizer.gamma_min": (GAMMA_ZERO, 1e3, "m/s^2"),
+    "optimizer.limits.torque[]": (0.0, 1e7, "N m or N"),
+    "optimizer.limits.joint_position[][]": (-3600.0, 3600.0, "deg or m"),
+    "optimizer.limits.joint_velocity[]": (0.0, 1e5, "deg/s or m/s"),
+    "optimizer.solver.tol": (1e-12, 1.0, ""),
+    "optimizer.solver.max_time": (0.0, 1e6, "s"),
+    "verification.poles[]": (-100.0, -1e-2, "1/s"),
+}
+"""Values cpopt accepts, by key (``[]`` any index, ``<node>`` start, via[i] or goal): outside
+them the dynamics are so ill-conditioned that a solve or a simulation would only crawl."""
+
+
+def _leaves(data, parts=()):
+    """(key parts, value) of every number in nested dicts and lists."""
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from _leaves(value, (*parts, key))
+    elif isinstance(data, list):
+        for i, value in enumerate(data):
+            yield from _leaves(value, (*parts, i))
+    elif isinstance(data, int | float) and not isinstance(data, bool):
+        yield parts, float(data)
+
+
+def _range_key(parts) -> str:
+    pattern = key_path(["[]" if isinstance(p, int) else p for p in parts]).replace(".[]", "[]")
+    for node in ("motion.start.", "motion.goal.", "motion.via[]."):
+        pattern = pattern.replace(node, "motion.<node>.")
+    return pattern
+
+
+def _check_ranges(spec: ProblemSpec, source: str) -> None:
+    """Every number within :data:`PHYSICAL_RANGES`; gamma_min > 0; com and inertia vs length."""
+    gamma_min = spec.optimizer.gamma_min
+    if gamma_min <= 0:
+        raise ProblemError(
+            source,
+            "optimizer.gamma_min",
+            f"must be > 0, got {gamma_min:g}: the flat map is singular at gamma = 0 (theta and "
+            "the torques are undetermined there), so a plan keeps |gamma| >= gamma_min > 0",
+        )
+    for parts, value in _leaves(spec.model_dump(exclude={"optimizer": {"free"}})):
+        bounds = PHYSICAL_RANGES.get(_range_key(parts))
+        if bounds is not None and not bounds[0] <= value <= bounds[1]:
+            lo, hi, unit = bounds
+            raise ProblemError(
+                source,
+                key_path(parts),
+                f"{value:g} {unit} lies outside the physical range cpopt accepts, "
+                f"[{lo:g}, {hi:g}] {unit} (see 'Physical ranges' in docs/problems.md)",
+            )
+    for i, link in enumerate(spec.arm.links):
+        reach = 10 * link.length
+        if link.com is not None and not (0 if i == 2 else -reach) < link.com <= reach:
+            where = "beyond its joint, " if i == 2 else ""
+            raise ProblemError(
+                source,
+                f"arm.links[{i}].com",
+                f"the centre of mass must lie {where}within 10 link lengths of the joint "
+                f"({'0' if i == 2 else f'{-reach:g}'} < com <= {reach:g} m), got {link.com:g} m",
+            )
+        if link.inertia is not None and link.inertia > link.mass * reach**2:
+            raise ProblemError(
+                source,
+                f"arm.links[{i}].inertia",
+                f"{link.inertia:g} kg m^2 exceeds mass * (10 length)^2 = "
+                f"{link.mass * reach**2:g} kg m^2, more than any link of this size can have",
+            )
+
+
+def _check_limits(spec, arm: Arm, nodes, joints, source: str) -> None:
+    """Joint position bounds in order; torque limits able to hold the arm at its rest ends."""
+    lim = spec.optimizer.limits
+    for i, pair in enumerate(lim.joint_position or ()):
+        if pair is not None and pair[0] > pair[1]:
+            raise ProblemError(
+                source,
+                f"optimizer.limits.joint_position[{i}]",
+                f"lower bound {pair[0]:g} exceeds upper bound {pair[1]:g} (give [lower, upper])",
+            )
+    if all(t is None for t in lim.torque):
+        return
+    units = ["N m" if r else "N" for r in arm.revolute]
+    free = spec.optimizer.free if spec.planner != "closed_form" else {}
+    for index, name in ((0, "start"), (len(nodes) - 1, "goal")):
+        node = nodes[index]
+        # the arm rests at the start before the motion (and at a goal with xi = 0 after it)
+        fields = ["x", "y", "theta_deg", "xdot", "ydot", "thetadot_deg"] + ["xi"] * (name == "goal")
+        holds = node.at_rest and (name == "start" or node.xi == 0)
+        if not holds or any(f"{name}.{f}" in free for f in fields):
+            continue
+        tau = holding_torque(arm, joints[index])
+        for i, tmax in enumerate(lim.torque):
+            if tmax is not None and abs(tau[i]) > tmax:
+                raise ProblemError(
+                    source,
+                    f"optimizer.limits.torque[{i}]",
+                    f"|tau{i + 1}| <= {tmax:g} {units[i]} cannot even hold the arm at rest at "
+                    f"motion.{name}: the static holding torque there is {tau[i]:.4g} "
+                    f"{units[i]}",
+                )
+
+
+def _file_value(spec: ProblemSpec, name: str) -> float:
+    """The file's value of a free value's name (its initial guess), in the file's units."""
+    if name == "duration":
+        return spec.motion.duration
+    node, field = name.split(".", 1)
+    m = spec.motion
+    state = {"start": m.start, "goal": m.goal}.get(node) or m.via[int(node[4:-1])]
+    if field == "eta_after" and state.eta_after is None:
+        return state.eta
+    return getattr(state, field)
+
+
+def _check_free(spec: ProblemSpec, free: dict, source: str) -> None:
+    """Known names, bounds in order and each guess (the file's value) within its bounds."""
+    names = free_value_names(len(spec.motion.via))
+    for name, (lo, hi) in free.items():
+        key = f"optimizer.free.{key_path([name])}"
+        if name not in names:
+            raise ProblemError(
+                source,
+                key,
+                f"not a value of this problem{_suggestion(name, names)} "
+                f"(names: {', '.join(names)})",
+            )
+        if lo is not None and hi is not None and lo > hi:
+            raise ProblemError(source, key, f"lower bound {lo:g} exceeds upper bound {hi:g}")
+        guess = _file_value(spec, name)
+        if (lo is not None and guess < lo) or (hi is not None and guess > hi):
+            raise ProblemError(
+                source,
+                key,
+                f"the initial guess motion.{name} = {guess:g} lies outside the bounds "
+                f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]; "
+                "the file's value is where the optimizer starts",
+            )
+
+
 def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
     o = spec.optimizer
-    count = o.coefficients if o.curve == "bspline" else o.degree + 1
     ends = 5 if o.smooth_torque else 4
-    if count < 2 * ends or count < o.degree + 1:
+    why = f"{ends} boundary conditions at each end{' (smooth_torque)' if o.smooth_torque else ''}"
+    if o.curve == "bspline" and o.coefficients < o.degree + 1:
+        # blame the value the file changed: a high degree, unless only coefficients was set
+        only_coefficients = {"coefficients"} <= o.model_fields_set and "degree" not in (
+            o.model_fields_set
+        )
+        raise ProblemError(
+            source,
+            "optimizer.coefficients" if only_coefficients else "optimizer.degree",
+            f"a B-spline of degree {o.degree} needs at least {o.degree + 1} coefficients per "
+            f"phase, and optimizer.coefficients is {o.coefficients}: lower the degree or raise "
+            "the coefficients",
+        )
+    count = o.coefficients if o.curve == "bspline" else o.degree + 1
+    if count < 2 * ends:
         key = "optimizer.coefficients" if o.curve == "bspline" else "optimizer.degree"
         raise ProblemError(
             source,
             key,
-            f"{count} coefficients per phase cannot hold {ends} boundary "
-            f"conditions at each end (need >= {max(2 * ends, o.degree + 1)})",
+            f"{count} coefficients per phase cannot hold {why} (need >= {2 * ends})",
         )
     if o.gamma_sign is not None and len(o.gamma_sign) != phases:
         raise ProblemError(
@@ -513,28 +734,67 @@ def check_tracking(spec: ProblemSpec, source: str) -> None:
         )
 
 
-def _check_gamma(arm, nodes, paths, free, source) -> None:
-    """gamma != 0 at nodes with fixed values, and one sign within each phase."""
+def _check_gamma(spec, arm, nodes, paths, free, source) -> None:
+    """gamma != 0 at nodes with fixed values, and one sign over the whole motion."""
     gam = [float(flat.gamma(n.state(), arm.K, arm.gravity)) for n in nodes]
-    fixed = [not gamma_is_free(p.removeprefix("motion."), free) for p in paths]
-    for g, is_fixed, path in zip(gam, fixed, paths, strict=True):
-        if is_fixed and abs(g) < GAMMA_ZERO:
+    fixed = [i for i, p in enumerate(paths) if not gamma_is_free(p.removeprefix("motion."), free)]
+    for i in fixed:
+        if abs(gam[i]) < GAMMA_ZERO:
             raise ProblemError(
                 source,
-                f"{path}.xi",
-                f"gamma = xi - K thetadot^2 + g0 sin(theta) = {g:.3g} m/s^2 at "
+                f"{paths[i]}.xi",
+                f"gamma = xi - K thetadot^2 + g0 sin(theta) = {gam[i]:.3g} m/s^2 at "
                 "this node: the flat map is singular there; choose xi so that "
                 "gamma != 0",
             )
-    for i in range(len(nodes) - 1):
-        if fixed[i] and fixed[i + 1] and gam[i] * gam[i + 1] < 0:
-            raise ProblemError(
-                source,
-                f"{paths[i + 1]}.xi",
-                f"gamma changes sign in phase {i + 1} (gamma = {gam[i]:.3g} at its "
-                f"start, {gam[i + 1]:.3g} m/s^2 at its end), so it vanishes in "
-                "between; choose xi at the nodes so that gamma keeps one sign",
-            )
+    if len({gam[i] > 0 for i in fixed}) < 2:
+        return
+    values = ", ".join(f"{gam[i]:+.3g} at {paths[i]}" for i in fixed)
+    intro = (
+        f"gamma = xi - K thetadot^2 + g0 sin(theta) changes sign over the motion ({values} "
+        "m/s^2), so it vanishes in between; it keeps one sign (it is continuous at via states)"
+    )
+    if _gravity_at_fault(spec, arm, nodes, fixed):
+        raise ProblemError(
+            source,
+            "arm.gravity",
+            f"{intro}. With the standard {G0} m/s^2 the signs agree: the node values look chosen "
+            f"for it; choose xi for gravity {arm.gravity:g} m/s^2 or change arm.gravity",
+        )
+    i = _odd_one_out(nodes, gam, fixed)
+    sign = -1.0 if gam[i] > 0 else 1.0
+    margin = max(spec.optimizer.gamma_min, 1.0)
+    xi = nodes[i].xi - gam[i] + sign * margin
+    raise ProblemError(
+        source,
+        f"{paths[i]}.xi",
+        f"{intro}. Here it has the sign of the fewer nodes: xi {'>=' if sign > 0 else '<='} "
+        f"{xi:.4g} m/s^2 gives it the others' sign with |gamma| >= {margin:g}",
+    )
+
+
+def _gravity_at_fault(spec, arm: Arm, nodes, fixed) -> bool:
+    """True when the file changed gravity and the standard one gives every fixed node one sign."""
+    if "gravity" not in spec.arm.model_fields_set or arm.gravity == G0:
+        return False
+    gam = [float(flat.gamma(nodes[i].state(), arm.K, G0)) for i in fixed]
+    return min(abs(g) for g in gam) >= GAMMA_ZERO and len({g > 0 for g in gam}) == 1
+
+
+def _odd_one_out(nodes, gam, fixed) -> int:
+    """The node to blame for a sign change: the first of the smaller group of signs.
+
+    On a tie, the group whose xi the file set away from 0 (chosen by hand; xi = 0 at a rest
+    state is a physical fact), else the group holding the later node.
+    """
+    pos = [i for i in fixed if gam[i] > 0]
+    neg = [i for i in fixed if gam[i] < 0]
+    if len(pos) != len(neg):
+        return min(pos, neg, key=len)[0]
+    pos_set, neg_set = (any(nodes[i].xi != 0 for i in g) for g in (pos, neg))
+    if pos_set != neg_set:
+        return (pos if pos_set else neg)[0]
+    return (pos if pos[-1] > neg[-1] else neg)[0]
 
 
 def parse_problem(data, source: str = "<python>", name: str | None = None) -> Problem:
@@ -547,7 +807,7 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
     source : str
         Shown in error messages.
     name : str, optional
-        Default name when the data has none.
+        Default name when the data has none (made a safe folder name, see :func:`safe_name`).
 
     Raises
     ------
@@ -566,7 +826,7 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
         raise ProblemError(source, path, message) from None
     arm, nodes = _check_physics(spec, source)
     return Problem(
-        name=spec.name or name or "problem",
+        name=spec.name or safe_name(name or "problem"),
         source=source,
         arm=arm,
         nodes=nodes,
@@ -577,37 +837,34 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
 
 
 def load_problem(path: str | Path) -> Problem:
-    """Read and validate a YAML problem file.
+    """Read and validate a YAML problem file (see :mod:`cpopt.safe_yaml` for the limits).
 
     Raises
     ------
     ProblemError
-        For a missing, unreadable, empty or malformed file, or invalid content.
+        For a missing, unreadable, empty, oversized or malformed file, or invalid content.
     """
-    p = Path(path)
     source = str(path)
-    if not p.exists():
-        raise ProblemError(source, "", "no such file")
-    if p.is_dir():
-        raise ProblemError(source, "", "is a directory, expected a YAML problem file")
     try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
-        raise ProblemError(source, "", f"cannot read the file ({err})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(err, "problem", None) or str(err)
-        raise ProblemError(source, "", f"malformed YAML{where}: {problem}") from None
-    return parse_problem(data, source, name=p.stem)
+        data = read_yaml(path)
+    except YamlInputError as err:
+        raise ProblemError(source, err.path, err.message) from None
+    return parse_problem(data, source, name=safe_name(Path(path).stem))
 
 
 def bundled_problems() -> list[Path]:
-    """The problem files shipped in ``problems/`` (next to the package in a checkout)."""
-    root = Path(__file__).resolve().parent.parent / "problems"
-    return sorted(root.glob("*.yaml"))
+    """The problem files shipped with cpopt.
+
+    They are package data, ``cpopt/problems/`` in an installed wheel; in a checkout that is a
+    link to ``problems/`` at the top (and ``problems/`` is used where links are not checked
+    out as links).
+    """
+    package = Path(__file__).resolve().parent
+    for root in (package / "problems", package.parent / "problems"):
+        files = sorted(root.glob("*.yaml"))
+        if files:
+            return files
+    return []
 
 
 __all__ = ["ARM_KINDS", "Problem", "ProblemError", "load_problem", "parse_problem"]

@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import __version__
+from .output import atomic_write
 from .plan import CPPlan
 from .simulate import Verification
 from .solver import SolverStats
@@ -39,7 +38,7 @@ CSV_COLUMNS = (
 
 STATUSES = (
     "solved", "infeasible", "max_iterations", "not_converged", "singular", "unreachable",
-    "verification_failed",
+    "verification_failed", "time_limit",
 )  # fmt: skip
 """Values of ``status``: only ``solved`` is a success."""
 
@@ -91,8 +90,9 @@ class Solution:
     def as_dict(self) -> dict:
         """The ``solution.json`` document."""
         solver = self.solver.as_dict()
-        if self.message and not solver["message"]:
-            solver["message"] = self.message
+        if self.message and self.message not in solver["message"]:
+            # what went wrong after the planner (verification, the time limit) is said too
+            solver["message"] = "; ".join(m for m in (solver["message"], self.message) if m)
         document = {
             "name": self.name,
             "status": self.status,
@@ -120,19 +120,6 @@ def _clean(value):
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
-
-
-def atomic_write(path: Path, write) -> None:
-    """Write a file through a temporary file in the same folder, then rename it into place."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            write(handle)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def trajectory_table(traj: Trajectory) -> np.ndarray:
@@ -194,6 +181,7 @@ def write_solution(solution: Solution, directory: str | Path) -> list[Path]:
         written.append(csv_path)
     else:
         csv_path.unlink(missing_ok=True)
+    # the JSON last: when it is there, the files it speaks for are too
     json_path = directory / "solution.json"
     document = _clean(solution.as_dict())
     atomic_write(json_path, lambda h: h.write(json.dumps(document, indent=2) + "\n"))

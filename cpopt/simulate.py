@@ -18,10 +18,10 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
 
-from . import flat
+from . import flat, progress
 from .dynamics import arm_dynamics, inverse_dynamics
+from .integrate import STEPS_PER_SECOND, DivergenceError, integrate
 from .kinematics import inverse_derivatives, inverse_position, joint_state, kinematic_functions
 from .mapping import mapped
 from .plan import CPPlan, Node
@@ -91,12 +91,10 @@ def _result(plan, mode, t, states, tau=None) -> SimulationResult:
     )
 
 
-def _integrate(rhs, x0, t0, t1, samples, rtol, atol):
+def _integrate(rhs, x0, t0, t1, samples, rtol, atol, steps_per_second=STEPS_PER_SECOND):
+    """Bounded DOP853 (:func:`cpopt.integrate.integrate`); raises DivergenceError."""
     t_eval = np.linspace(t0, t1, samples)
-    sol = solve_ivp(rhs, (t0, t1), x0, method="DOP853", t_eval=t_eval, rtol=rtol, atol=atol)
-    if not sol.success:
-        raise RuntimeError(f"simulation failed at t = {sol.t[-1]:.4g} s: {sol.message}")
-    return sol.t, sol.y.T
+    return integrate(rhs, x0, t0, t1, t_eval, rtol, atol, steps_per_second)
 
 
 def simulate_reduced(
@@ -188,7 +186,9 @@ def simulate_closed_loop(
         def rhs(t, x, curve=ph.curve):
             return np.asarray(f(x, curve.derivatives(t, 4)[0], gains)[0]).ravel()
 
-        t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
+        # the step size shrinks with the poles: the budget grows with them (x1 up to -10 1/s)
+        rate = STEPS_PER_SECOND * max(1.0, float(np.max(np.abs(poles))) / 10)
+        t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol, rate)
         X = Xs[-1]
         Pd = ph.curve.derivatives(t, 4)
         tau = np.asarray(mapped(f, t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
@@ -298,8 +298,51 @@ class Verification:
         }
 
 
-def verify(plan: CPPlan, residual: float, poles=DEFAULT_POLES) -> Verification:
-    """Run the three simulations of a plan.
+@dataclass(frozen=True)
+class DivergedVerification:
+    """Verification stopped: one simulation diverged (or crawled) and the rest were not run.
+
+    Attributes
+    ----------
+    mode : str
+        ``reduced``, ``closed_loop`` or ``open_loop``.
+    t : float
+        Simulated time where it stopped [s].
+    reason : str
+        What happened.
+    passive_torque_residual : float
+        Largest |torque| the plan asks of the passive joint [N m].
+    """
+
+    mode: str
+    t: float
+    reason: str
+    passive_torque_residual: float
+    max_cp_error = float("inf")
+    final_state_error = float("inf")
+
+    def passed(self, *args, **kwargs) -> bool:
+        """Never: the simulation did not reach the end of the plan."""
+        return False
+
+    def message(self) -> str:
+        """One line for ``solver.message``."""
+        return f"the {self.mode} simulation diverged at t = {self.t:.6g} s ({self.reason})"
+
+    def summary(self) -> dict:
+        """The figures written to ``solution.json``: where and why the simulation stopped."""
+        return {
+            "max_cp_error": None,
+            "final_state_error": None,
+            "passive_torque_residual": self.passive_torque_residual,
+            "diverged": {"simulation": self.mode, "t": self.t, "reason": self.reason},
+        }
+
+
+def verify(
+    plan: CPPlan, residual: float, poles=DEFAULT_POLES
+) -> Verification | DivergedVerification:
+    """Run the three simulations of a plan, each bounded (:mod:`cpopt.integrate`).
 
     Parameters
     ----------
@@ -309,10 +352,22 @@ def verify(plan: CPPlan, residual: float, poles=DEFAULT_POLES) -> Verification:
         Largest passive-joint torque of the sampled plan [N m] (from the trajectory).
     poles : sequence of float
         Tracking poles [1/s].
+
+    Returns
+    -------
+    Verification or DivergedVerification
+        The latter when a simulation diverged: which one, when and why.
     """
-    return Verification(
-        reduced=simulate_reduced(plan),
-        closed_loop=simulate_closed_loop(plan, poles=poles),
-        open_loop=simulate_open_loop(plan),
-        passive_torque_residual=float(residual),
-    )
+    runs = {
+        "reduced": lambda: simulate_reduced(plan),
+        "closed_loop": lambda: simulate_closed_loop(plan, poles=poles),
+        "open_loop": lambda: simulate_open_loop(plan),
+    }
+    results = {}
+    for mode, run in runs.items():
+        progress.stage(f"simulation: {mode.replace('_', ' ')}")
+        try:
+            results[mode] = run()
+        except DivergenceError as err:
+            return DivergedVerification(mode, err.t, err.reason, float(residual))
+    return Verification(**results, passive_torque_residual=float(residual))

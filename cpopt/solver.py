@@ -18,6 +18,7 @@ IPOPT_STATUS = {
     "Infeasible_Problem_Detected": "infeasible",
     "Maximum_Iterations_Exceeded": "max_iterations",
     "Maximum_CpuTime_Exceeded": "max_iterations",
+    "Maximum_WallTime_Exceeded": "time_limit",
 }
 """Ipopt's return status -> cpopt's status; any other return status is ``not_converged``."""
 
@@ -37,6 +38,7 @@ def ipopt_options(settings, mu_strategy: bool = True) -> dict:
         "print_level": settings.print_level,
         "max_iter": settings.max_iter,
         "tol": settings.tol,
+        "max_wall_time": settings.max_time,
         "sb": "yes",
     }
     if mu_strategy:

@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from cpopt.cli import main
-from cpopt.problem import bundled_problems, load_problem
+from cpopt.problem import bundled_problems, load_problem, parse_problem
 from cpopt.results import CSV_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,6 +30,15 @@ GOOD = textwrap.dedent("""\
       via:
         - {t: 0.5, x: 1.25, y: 1.0, theta_deg: 90, xi: 0.5}
       goal: {x: 1.75, y: 1.0, theta_deg: 90}
+    """)
+
+
+OPT = GOOD + textwrap.dedent("""\
+    planner: optimize
+    optimizer:
+      gamma_min: 2.0
+      free:
+        start.xi: [-40, 40]
     """)
 
 
@@ -198,6 +208,104 @@ BAD = [
     ),
     ("bad planner", GOOD + "planner: magic\n", "planner", "closed_form"),
     ("malformed yaml", GOOD.replace("kind: RRR", "kind: [RRR"), "", "malformed YAML at line"),
+    # a name is one folder under --out, never a path
+    ("name climbs out", GOOD.replace("name: good", "name: ../../escaped"), "name", "--out"),
+    ("name absolute", GOOD.replace("name: good", "name: /tmp/escaped"), "name", "--out"),
+    ("name dot-dot", GOOD.replace("name: good", "name: '..'"), "name", "no '/', '.' or '..'"),
+    ("name with slash", GOOD.replace("name: good", "name: a/b"), "name", "--out"),
+    # physics refused before any work
+    (
+        "gamma_min zero",
+        OPT.replace("gamma_min: 2.0", "gamma_min: 0"),
+        "optimizer.gamma_min",
+        "singular",
+    ),
+    ("absurd mass", GOOD.replace("mass: 10.0", "mass: 1e9"), "arm.links[0].mass", "physical range"),
+    ("absurd length", GOOD.replace("length: 1.0", "length: 2.0e4"), "arm.links[2].length", "range"),
+    (
+        "absurd duration",
+        GOOD.replace("duration: 1.0", "duration: 1e-3").replace("t: 0.5", "t: 5e-4"),
+        "motion.duration",
+        "physical range",
+    ),
+    (
+        "centre of percussion at infinity",
+        GOOD.replace("{length: 1.0, mass: 1.0}", "{length: 1.0, mass: 1.0, com: 1.0e-6}"),
+        "arm.links[2].com",
+        "centre of percussion",
+    ),
+    # bounds in order, guesses inside them, limits that can hold the arm
+    (
+        "reversed joint limits",
+        OPT.replace(
+            "gamma_min: 2.0",
+            "gamma_min: 2.0\n  limits: {joint_position: [[170, -170], null, null]}",
+        ),
+        "optimizer.limits.joint_position[0]",
+        "exceeds upper bound",
+    ),
+    (
+        "reversed free bounds",
+        OPT.replace("start.xi: [-40, 40]", "start.xi: [40, -40]"),
+        "optimizer.free.start.xi",
+        "exceeds upper bound",
+    ),
+    (
+        "guess outside its bounds",
+        OPT.replace("start.xi: [-40, 40]", "start.xi: [1, 40]"),
+        "optimizer.free.start.xi",
+        "motion.start.xi = 0 lies outside",
+    ),
+    (
+        "torque limit cannot hold the start",
+        OPT.replace("gamma_min: 2.0", "gamma_min: 2.0\n  limits: {torque: [1, null]}"),
+        "optimizer.limits.torque[0]",
+        "cannot even hold the arm at rest at motion.start",
+    ),
+    # messages that point at the right key
+    (
+        "unit left out",
+        GOOD.replace("theta_deg: 90}", "theta: 90}", 1),
+        "motion.start.theta",
+        "'theta_deg'",
+    ),
+    (
+        "free name without unit",
+        OPT.replace("start.xi: [-40, 40]", "start.theta: [-100, 100]"),
+        "optimizer.free.start.theta",
+        "did you mean 'start.theta_deg'",
+    ),
+    (
+        "gamma sign wrong at the start",
+        GOOD.replace("theta_deg: 90}", "theta_deg: 90, xi: -20}", 1),
+        "motion.start.xi",
+        "changes sign",
+    ),
+    (
+        "gamma sign wrong because of gravity",
+        GOOD.replace("xi: 0.5}", "xi: -8}").replace("kind: RRR", "kind: RRR\n  gravity: 5"),
+        "arm.gravity",
+        "changes sign",
+    ),
+    (
+        "branch none on a 3R arm",
+        GOOD.replace("kind: RRR", "kind: RRR\n  branch: none"),
+        "arm.branch",
+        "elbow_up",
+    ),
+    (
+        "degree too high",
+        OPT.replace("gamma_min: 2.0", "gamma_min: 2.0\n  degree: 15"),
+        "optimizer.degree",
+        "16",
+    ),
+    (
+        "duplicate key",
+        GOOD.replace("  duration: 1.0", "  duration: 1.0\n  duration: 2.0"),
+        "motion.duration",
+        "duplicate key",
+    ),
+    ("long value", GOOD.replace("kind: RRR", "kind: " + "R" * 100_000), "arm.kind", "RRR..."),
     ("empty file", "", "", "empty document"),
     ("scalar document", "42\n", "", "expected a mapping"),
 ]
@@ -217,7 +325,10 @@ def test_bad_input_exit_2_with_key_path(tmp_path, capsys, case, text, key, words
         assert f"{path}: {key}:" in err if key else f"{path}:" in err
         assert words in err, err
         assert "Traceback" not in err
+        assert len(err) < 2000  # no megabytes of echoed input
     assert not (tmp_path / "o").exists()
+    assert list(tmp_path.iterdir()) == [path]
+    assert not (tmp_path.parent / "escaped").exists() and not Path("/tmp/escaped").exists()
 
 
 def test_directory_and_missing_file(tmp_path, capsys):
@@ -241,3 +352,11 @@ def test_real_command_line_prints_no_traceback(tmp_path):
         [sys.executable, "-m", "cpopt.cli", "frobnicate"], capture_output=True, text=True, cwd=ROOT
     )
     assert run.returncode == 2 and "Traceback" not in run.stderr
+
+
+def test_a_file_name_becomes_a_safe_problem_name(tmp_path, capsys):
+    path = _write(tmp_path, GOOD.replace("name: good\n", ""), name="my problem (v2).yaml")
+    assert main(["check", str(path)]) == 0
+    assert "(my_problem__v2_: RRR arm" in capsys.readouterr().out
+    unnamed = yaml.safe_load(GOOD.replace("name: good\n", ""))
+    assert parse_problem(unnamed, name="../up").name == "_up"  # one folder, never a path

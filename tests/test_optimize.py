@@ -122,7 +122,7 @@ INFEASIBLE = textwrap.dedent("""\
     optimizer:
       gamma_sign: [negative, negative]
       samples: 21
-      limits: {torque: [5, 5]}
+      limits: {torque: [5, 15]}  # holds the arm at rest (14.4 N m), cannot swing it up
       free:
         via[0].xi: [-40, 40]
         goal.xi: [-40, 40]

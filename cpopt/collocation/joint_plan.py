@@ -9,9 +9,9 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from ..dynamics import arm_dynamics, holding_torque
+from ..integrate import integrate
 from ..kinematics import kinematic_functions
 from ..mapping import mapped
 from ..plan import Node
@@ -236,10 +236,10 @@ def replay(plan: JointPlan, goal: Node, tolerance: float = 1e-3) -> ReplayCheck:
         def rhs(_t, x, tau=tau):
             return np.concatenate([x[3:], np.asarray(forward(x[:3], x[3:], tau)).ravel()])
 
-        sol = solve_ivp(rhs, (t0, t1), X, "DOP853", t_eval=t_eval, rtol=1e-10, atol=1e-10)
-        X = sol.y[:, -1]
-        times.append(sol.t)
-        states.append(sol.y.T)
+        t, Xs = integrate(rhs, X, t0, t1, t_eval, rtol=1e-10, atol=1e-10)  # bounded
+        X = Xs[-1]
+        times.append(t)
+        states.append(Xs)
     t = np.concatenate(times)
     state = pose_states(plan.arm, np.concatenate(states))
     K = plan.arm.K

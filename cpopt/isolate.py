@@ -1,0 +1,105 @@
+"""One problem solved in a child process, so that its wall-clock limit holds without exception.
+
+The limit is enforced inside :func:`cpopt.pipeline.solve` by signals and checks, but a long
+native call that never looks at the clock (CasADi building a large NLP: minutes for thousands
+of samples) cannot be stopped from inside. The command line therefore solves each problem in a
+forked child process: the child runs :func:`cpopt.pipeline.solve` (which stops itself at the
+limit and returns the partial solution) and sends the :class:`~cpopt.results.Solution` back;
+the parent kills a child that overruns the limit by :data:`GRACE` seconds and reports status
+``time_limit`` with the last stage the child reached. Where ``fork`` is not available the
+problem is solved in this process.
+"""
+
+from __future__ import annotations
+
+import copy
+import multiprocessing
+import signal
+import time
+
+from . import progress
+from .pipeline import solve
+from .problem import Problem
+from .results import Solution
+
+GRACE = 2.0
+"""Seconds a child gets beyond the limit to stop by itself and send what it has."""
+
+
+def _child(problem: Problem, conn) -> None:
+    signal.set_wakeup_fd(-1)  # the parent's Ctrl-C watcher is the parent's alone
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a Ctrl-C ends the child at once, silently
+    relay = copy.copy(progress.current())
+    relay.listener = lambda text: conn.send(("stage", text))
+    try:
+        with progress.reporting(relay, problem.name):
+            solution = solve(problem)
+        conn.send(("solution", solution))
+    except BaseException as err:  # a bug: the parent raises it with this text
+        conn.send(("error", f"{type(err).__name__}: {err}"))
+    finally:
+        conn.close()
+
+
+def solve_isolated(problem: Problem) -> Solution:
+    """:func:`cpopt.pipeline.solve` in a child process killed when it overruns its limit.
+
+    Returns
+    -------
+    Solution
+        The child's solution; status ``time_limit`` (no plan) when it had to be killed, and
+        ``not_converged`` when it ended without sending one (a crash in native code).
+
+    Raises
+    ------
+    RuntimeError
+        When the child raised (a bug in cpopt), with its message.
+    KeyboardInterrupt
+        On Ctrl-C (the child is killed first).
+    """
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return solve(problem)
+    context = multiprocessing.get_context("fork")
+    receive, send = context.Pipe(duplex=False)
+    child = context.Process(target=_child, args=(problem, send), daemon=True)
+    start = time.monotonic()
+    child.start()
+    send.close()
+    stage = "starting"  # the last stage the child reported
+    try:
+        while receive.poll(max(problem.max_time + GRACE - (time.monotonic() - start), 0)):
+            kind, value = receive.recv()
+            if kind == "solution":
+                return value
+            if kind == "error":
+                raise RuntimeError(f"solving {problem.name} failed: {value}")
+            stage = value
+        return _killed(problem, child, stage, time.monotonic() - start)
+    except EOFError:
+        child.join()
+        return Solution(
+            problem.name,
+            "not_converged",
+            problem.planner,
+            message=f"the solver process ended without a result (exit code {child.exitcode}) "
+            f"while {stage}",
+        )
+    finally:
+        if child.is_alive():
+            child.kill()
+        child.join()
+        receive.close()
+
+
+def _killed(problem: Problem, child, stage: str, elapsed: float) -> Solution:
+    child.kill()
+    message = (
+        f"wall-clock limit of {problem.max_time:g} s reached while {stage} (after "
+        f"{elapsed:.3g} s, stopped inside a call that does not check the clock, such as building "
+        "the optimizer's NLP); raise optimizer.solver.max_time or --time-limit"
+    )
+    progress.stage(message)
+    return Solution(problem.name, "time_limit", problem.planner, message=message)
+
+
+__all__ = ["GRACE", "solve_isolated"]

@@ -1,0 +1,182 @@
+"""Bounded work: the wall-clock limit, Ctrl-C, diverging simulations, progress messages.
+
+Subprocess timeouts below guard against a hang; they are not timing assertions.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_cli import GOOD
+
+from cpopt.budget import Budget, TimeLimitExceeded, check_time, enforced
+from cpopt.cli import main
+from cpopt.integrate import DivergenceError, integrate
+from cpopt.progress import Progress, reporting, stage
+
+ROOT = Path(__file__).resolve().parent.parent
+PROBLEMS = ROOT / "problems"
+
+
+def test_a_diverging_simulation_stops_where_it_diverges():
+    # x' = x^2, x(0) = 1 blows up at t = 1
+    with pytest.raises(DivergenceError) as err:
+        integrate(lambda t, x: x**2, np.ones(1), 0.0, 2.0, np.linspace(0, 2, 5), 1e-10, 1e-10)
+    assert err.value.t == pytest.approx(1.0, abs=1e-3)
+    assert "left |x|" in err.value.reason
+
+
+def test_a_crawling_simulation_stops_at_its_step_budget():
+    def stiff(t, x):
+        return -1e7 * (x - np.cos(t))
+
+    with pytest.raises(DivergenceError) as err:
+        integrate(stiff, np.ones(1), 0.0, 1.0, np.linspace(0, 1, 5), 1e-10, 1e-10, 0.0)
+    assert "more than 1000 integration steps" in err.value.reason and err.value.t < 1.0
+
+
+def test_bounded_integration_matches_solve_ivp():
+    from scipy.integrate import solve_ivp
+
+    t_eval = np.linspace(0.0, 3.0, 31)
+    ref = solve_ivp(lambda t, x: [x[1], -x[0]], (0, 3), [1.0, 0.0], "DOP853", t_eval=t_eval)
+    t, x = integrate(lambda t, x: np.array([x[1], -x[0]]), [1.0, 0.0], 0.0, 3.0, t_eval, 1e-3, 1e-6)
+    np.testing.assert_array_equal(t, ref.t)
+    np.testing.assert_array_equal(x, ref.y.T)  # the same steps and dense output
+
+
+def test_verification_of_a_crawling_plan_fails_with_its_time(tmp_path, capsys):
+    # a 0.05 s transfer: the reduced model needs tiny steps and hits its step budget
+    fast = GOOD.replace("duration: 1.0", "duration: 0.05").replace("t: 0.5", "t: 0.025")
+    path = tmp_path / "p.yaml"
+    path.write_text(fast)
+    assert main(["solve", str(path), "--out", str(tmp_path / "out")]) == 1
+    assert "verification_failed" in capsys.readouterr().out
+    doc = json.loads((tmp_path / "out" / "good" / "solution.json").read_text())
+    assert doc["status"] == "verification_failed"
+    diverged = doc["verification"]["diverged"]
+    assert diverged["simulation"] == "reduced" and 0 < diverged["t"] < 0.05
+    assert f"diverged at t = {diverged['t']:.6g} s" in doc["solver"]["message"]
+
+
+def test_the_budget_stops_python_work():
+    budget = Budget(0.2)
+    with pytest.raises(TimeLimitExceeded), enforced(budget):
+        while True:
+            check_time()
+    assert budget.fired
+    with pytest.raises(TimeLimitExceeded), enforced(Budget(0.2)):
+        time.sleep(5)  # stopped by the timer, not by a check
+    assert signal.getsignal(signal.SIGALRM) in (signal.SIG_DFL, None)
+
+
+def test_the_time_limit_ends_a_verification_with_status_time_limit(tmp_path, capsys):
+    path = PROBLEMS / "paper_transfer_slow.yaml"  # ~2 s of simulation on its own
+    out = tmp_path / "out"
+    assert main(["solve", str(path), "--out", str(out), "--time-limit", "0.5"]) == 1
+    doc = json.loads((out / "paper_transfer_slow" / "solution.json").read_text())
+    assert doc["status"] == "time_limit"
+    assert "wall-clock limit of 0.5 s reached" in doc["solver"]["message"]
+    assert doc["duration_s"] == 5.0  # the plan was made; its verification was stopped
+    assert not (out / "paper_transfer_slow" / "trajectory.csv").exists()
+    assert "time_limit" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_the_time_limit_stops_the_optimizer(tmp_path):
+    """A problem that takes about a minute, stopped after 2 s (plus the NLP build, which
+    CasADi does not interrupt)."""
+    problem = PROBLEMS / "swing_up_torque_limited.yaml"
+    command = [sys.executable, "-m", "cpopt", "solve", str(problem), "--time-limit", "2"]
+    run = subprocess.run(
+        [*command, "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+    )
+    assert run.returncode == 1, run.stderr
+    doc = json.loads((tmp_path / "swing_up_torque_limited" / "solution.json").read_text())
+    assert doc["status"] == "time_limit" and "Traceback" not in run.stderr
+    assert "while planning (flat optimizer)" in doc["solver"]["message"]
+
+
+def _interrupt(args, when: str, tmp_path: Path):
+    """Start ``cpopt solve ... --verbose``, wait for the stderr line with ``when``, send SIGINT."""
+    command = [sys.executable, "-m", "cpopt", "solve", *args, "--verbose"]
+    run = subprocess.Popen(
+        [*command, "--out", str(tmp_path / "out")],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    lines = []
+    for line in run.stderr:
+        lines.append(line)
+        if when in line:
+            break
+    time.sleep(0.5)
+    sent = time.monotonic()
+    run.send_signal(signal.SIGINT)
+    rest = run.communicate(timeout=60)[1]
+    return run.returncode, lines, rest, time.monotonic() - sent
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "problem, flags, when",
+    [
+        ("swing_up_min_torque.yaml", [], "Ipopt run"),  # building the NLP, then Ipopt
+        ("paper_transfer_slow.yaml", [], "verifying"),  # Python code: a plain unwind
+        ("paper_swing_up.yaml", ["--plot", "--animate"], "writing results"),  # temp files
+    ],
+)
+def test_ctrl_c_exits_130_with_one_line_and_no_leftovers(tmp_path, problem, flags, when):
+    code, before, after, took = _interrupt([str(PROBLEMS / problem), *flags], when, tmp_path)
+    assert code == 130, after
+    lines = after.strip().splitlines()
+    assert lines[-1] == "cpopt: interrupted" and "Traceback" not in after, after
+    progress = f"cpopt: {Path(problem).stem}: "  # --verbose stage lines up to the signal
+    assert all(line.startswith(progress) for line in before + lines[:-1]), after
+    print(f"stopped {took:.2f} s after SIGINT")  # reported, not asserted
+    out = tmp_path / "out"
+    leftovers = [p.name for p in out.rglob("*") if p.is_file() and ".tmp" in p.name]
+    assert leftovers == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"] or not out.exists()
+
+
+def test_progress_goes_to_a_terminal_or_with_verbose_and_never_with_quiet(capsys):
+    class Terminal:
+        def __init__(self):
+            self.text = ""
+
+        def write(self, text):
+            self.text += text
+
+        def flush(self):
+            pass
+
+        def isatty(self):
+            return True
+
+    shown, piped, quiet = Terminal(), Terminal(), Terminal()
+    piped.isatty = lambda: False
+    for reporter in (Progress(shown), Progress(piped), Progress(quiet, quiet=True)):
+        with reporting(reporter, "p"):
+            stage("planning")
+    assert shown.text.startswith("cpopt: p: planning [") and piped.text == quiet.text == ""
+    verbose = Terminal()
+    verbose.isatty = lambda: False
+    with reporting(Progress(verbose, verbose=True), "p"):
+        stage("planning")
+    assert "planning" in verbose.text
+    stage("outside any block")  # silent, no error
+    assert capsys.readouterr().err == ""
+    assert os.environ.get("CPOPT_NO_SUCH") is None
