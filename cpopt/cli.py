@@ -234,6 +234,17 @@ def _interrupted() -> None:
         print("cpopt: interrupted", file=sys.stderr, flush=True)
 
 
+def _caused_by_interrupt(err: BaseException) -> bool:
+    """True when a KeyboardInterrupt is in the exception's chain of causes and contexts."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return True
+        seen.add(id(err))
+        err = err.__cause__ or err.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``cpopt`` command; returns the exit code."""
     from .budget import hard_stop_on_interrupt
@@ -252,6 +263,13 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `cpopt list | head`: the reader left; so do we, quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_FAILED
+    except Exception as err:
+        # a Ctrl-C inside an import or a descriptor hook reaches us wrapped in another
+        # exception (e.g. RuntimeError from __set_name__); it is still the user's Ctrl-C
+        if not _caused_by_interrupt(err):
+            raise
+        _interrupted()
+        return EXIT_INTERRUPTED
 
 
 def run() -> None:
