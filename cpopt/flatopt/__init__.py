@@ -19,14 +19,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import flat
-from ..bspline import SplineBasis
 from ..nodes import gamma_is_free, node_names, nodes_from_values, to_file
 from ..objectives import weights
 from ..plan import CPPlan, Phase
 from ..problem import Problem
 from ..solver import SolverStats, run_nlp
 from .refine import CERTIFICATION, MAX_REFINEMENTS, between_samples, violations
-from .transcribe import FlatNLP, build, coefficient_count
+from .transcribe import FlatNLP, build, phase_pieces
 from .warm_start import initial_guess
 
 
@@ -129,9 +128,11 @@ def plan_from(problem: Problem, nlp: FlatNLP, x: np.ndarray, p: np.ndarray, sign
     n_phases = len(problem.nodes) - 1
     nodes = nodes_from_values(values, len(problem.nodes))
     times = [node.t for node in nodes]
-    basis = SplineBasis(o.degree, coefficient_count(o))
     phases = tuple(
-        Phase(basis.to_pieces(np.asarray(outs[1 + k]), times[k], times[k + 1] - times[k]), sign)
+        Phase(
+            phase_pieces(problem, k, np.asarray(outs[1 + k]), times[k], times[k + 1] - times[k]),
+            sign,
+        )
         for k in range(n_phases)
     )
     w = weights(o.objective)

@@ -47,6 +47,33 @@ def coefficient_count(settings) -> int:
     return settings.coefficients if settings.curve == "bspline" else settings.degree + 1
 
 
+@dataclass(frozen=True)
+class SplineCurve:
+    """One phase's CP curve of the free B-spline family (``curve: bspline`` or ``polynomial``):
+    coefficients (n x 2) on the phase's normalised time, h its duration [s]."""
+
+    basis: SplineBasis
+    coefficients: ca.MX
+    h: ca.MX
+
+    def derivatives(self, s: np.ndarray, orders: int = 5) -> list:
+        """CP derivatives 0..orders-1 at normalised times s, each (len(s), 2) [m/s^r]."""
+        return [
+            ca.mtimes(self.basis.matrix(s, r), self.coefficients) / self.h**r for r in range(orders)
+        ]
+
+    @property
+    def packed(self) -> ca.MX:
+        """What the unpacked solution holds of the phase: its coefficient matrix."""
+        return self.coefficients
+
+
+def phase_pieces(problem: Problem, k: int, packed: np.ndarray, t0: float, h: float):
+    """Phase k of a solved NLP as polynomial pieces on [t0, t0 + h] (from its ``packed``)."""
+    o = problem.spec.optimizer
+    return SplineBasis(o.degree, coefficient_count(o)).to_pieces(np.asarray(packed), t0, h)
+
+
 @dataclass
 class Constraints:
     """The NLP's constraints as they are assembled: expressions, bounds, and a label per row
@@ -332,15 +359,20 @@ def _coefficients(tr: _Transcription, k: int, h) -> ca.MX:
     return ca.vertcat(*parts)
 
 
+def _curve(tr: _Transcription, k: int, h) -> SplineCurve:
+    """Phase k's curve, its decision blocks and boundary conditions."""
+    return SplineCurve(tr.basis, _coefficients(tr, k, h), h)
+
+
 def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
-    """Everything of phase k: coefficients, samples, constraints and objective terms."""
+    """Everything of phase k: its curve, samples, constraints and objective terms."""
     times = tr.times
     h = times[k + 1] - times[k]
-    C = _coefficients(tr, k, h)
-    tr.coefficients.append(C)
+    curve = _curve(tr, k, h)
+    tr.coefficients.append(curve.packed)
     m = tr.settings.samples + (1 - tr.settings.samples % 2)  # odd, for Simpson's rule
     s = np.r_[np.linspace(0.0, 1.0, m), np.asarray(extra, float)]
-    D = [ca.mtimes(tr.basis.matrix(s, r), C) / h**r for r in range(5)]  # each (len(s), 2)
+    D = curve.derivatives(s)  # each (len(s), 2)
     # sample j's CP derivatives as the 2 x 5 block j of one 2 x 5N matrix, for the map
     P_all = ca.reshape(ca.vertcat(*[d.T for d in D]), 2, 5 * len(s))
     lifted = ca.MX.sym(f"P{k}", 2, 5 * len(s))
@@ -356,7 +388,7 @@ def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
     )
     sample = sample_function(tr.problem.arm, tr.settings.solver.jit).map(len(s), "serial")
     tau, q, qd, reach = sample(lifted, tr.sign)
-    _gamma_constraints(tr, k, C, h, s, m)
+    _gamma_constraints(tr, k, curve, s, m)
     if tr.problem.arm.kind != "PPR":
         tr.g.add(reach.T, REACH_EPS[tr.problem.arm.kind], ca.inf, f"reach (phase {k + 1})", where)
     _limit_constraints(tr, {"tau": tau, "q": q, "qd": qd}, where)
@@ -377,15 +409,13 @@ def _simpson(m: int) -> np.ndarray:
     return w / (3 * (m - 1))
 
 
-def _gamma_constraints(tr: _Transcription, k: int, C, h, s: np.ndarray, m: int) -> None:
+def _gamma_constraints(tr: _Transcription, k: int, curve, s: np.ndarray, m: int) -> None:
     """|gamma| >= gamma_min on a grid 4 times finer than the samples (gamma is cheap: the norm
-    of a quantity linear in the coefficients)."""
+    of the CP's acceleration plus g0 e_y)."""
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
     s_gamma = np.r_[np.linspace(0.0, 1.0, 4 * (m - 1) + 1), s[m:]]
-    acc = ca.mtimes(tr.basis.matrix(s_gamma, 2), C) / h**2 + ca.repmat(
-        ca.DM([[0, g0]]), len(s_gamma), 1
-    )
+    acc = curve.derivatives(s_gamma, 3)[2] + ca.repmat(ca.DM([[0, g0]]), len(s_gamma), 1)
     tr.g.add(
         ca.sum2(acc**2) - gmin**2,
         0,

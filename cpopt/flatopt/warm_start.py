@@ -49,10 +49,10 @@ def fallback_excursion(plan: CPPlan) -> list[float]:
     return out
 
 
-def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
-    """The whole initial decision vector: core variables and the lifted samples they imply."""
+def spline_coefficients(problem: Problem, plan: CPPlan) -> list[np.ndarray]:
+    """Per phase, the closed-form curve projected onto the B-spline basis (n x 2), with the
+    fallback excursion where the closed form is singular."""
     o = problem.spec.optimizer
-    plan = initial_plan(problem, sign)
     n = coefficient_count(o)
     basis = SplineBasis(o.degree, n)
     coefficients = []
@@ -60,6 +60,14 @@ def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
         C = fit(basis, ph.curve)
         C[:, 0] += bump * np.sin(np.pi * np.linspace(0, 1, n)) ** 2
         coefficients.append(C)
+    return coefficients
+
+
+def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
+    """The whole initial decision vector: core variables and the lifted samples they imply."""
+    o = problem.spec.optimizer
+    plan = initial_plan(problem, sign)
+    coefficients = spline_coefficients(problem, plan)
     node_index = {name: i for i, name in enumerate(node_names(len(plan.nodes)))}
     values = problem.values
     core = []
