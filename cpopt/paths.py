@@ -373,7 +373,8 @@ NAMES = ("y", "its velocity y'", "its acceleration y''", "its jerk y'''", "its s
 
 
 def _vec(v: np.ndarray) -> str:
-    v = np.asarray(v, float) + 0.0  # no "-0"
+    v = np.asarray(v, float)
+    v = np.where(np.abs(v) < 1e-9 * np.abs(v).max(), 0.0, v) + 0.0  # no "-0", no round-off
     return f"({v[0]:.4g}, {v[1]:.4g})"
 
 

@@ -4,7 +4,9 @@ The NLP (:mod:`~cpopt.flatopt.transcribe`) has the B-spline coefficients, the fr
 and the compensator inputs as decision variables (:mod:`~cpopt.flatopt.layout`); it starts from
 the closed form (:mod:`~cpopt.flatopt.warm_start`); after each solve gamma is certified exactly
 and the limits are checked between the samples, and samples are added where they fail
-(:mod:`~cpopt.flatopt.refine`).
+(:mod:`~cpopt.flatopt.refine`). With ``curve: path_timing`` each phase's CP follows a path at
+the pace of a timing law instead (:mod:`~cpopt.flatopt.path_timing`): another curve family
+feeding the same NLP.
 
 The sign of gamma is one for the whole motion: gamma depends on (xi, theta, thetadot), all
 continuous at via states (an eta reset does not change it), so two phases meeting at a via state
@@ -24,6 +26,7 @@ from ..objectives import weights
 from ..plan import CPPlan, Phase
 from ..problem import Problem
 from ..solver import SolverStats, run_nlp
+from .path_timing import chosen_points
 from .refine import CERTIFICATION, MAX_REFINEMENTS, between_samples, violations
 from .transcribe import FlatNLP, build, phase_pieces
 from .warm_start import initial_guess
@@ -138,6 +141,8 @@ def plan_from(problem: Problem, nlp: FlatNLP, x: np.ndarray, p: np.ndarray, sign
     w = weights(o.objective)
     terms = {k: float(v) for k, v in zip(w, outs[1 + n_phases :], strict=True)}
     free_values = {name: to_file(name, values[name]) for name in problem.free}
+    if o.curve == "path_timing":
+        free_values.update(chosen_points(o.path, [outs[1 + k] for k in range(n_phases)]))
     plan = CPPlan(
         arm=problem.arm, nodes=tuple(nodes), phases=phases, planner="optimize",
         free_values=free_values,

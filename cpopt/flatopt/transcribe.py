@@ -9,6 +9,11 @@ problem of the same structure.
 Boundary elimination: the first and last 4 coefficients of a phase (5 with ``smooth_torque``)
 are linear functions of the node values, so the boundary conditions hold exactly.
 
+A phase's curve is an object of its family (:class:`SplineCurve`, or
+:class:`~cpopt.flatopt.path_timing.PathTimingCurve` for ``curve: path_timing``) that adds its
+decision blocks and boundary conditions and yields the CP derivatives at any normalised times;
+everything after that is common to the families.
+
 Lifting: the CP derivatives of each sample are decision variables tied to the coefficients by
 linear constraints, and every sample-wise quantity (torques, joint motion, reach) goes through
 one small CasADi function of them (:mod:`cpopt.flatopt.samples`), mapped over the samples. The
@@ -30,6 +35,7 @@ from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..objectives import squared_norm, weights
 from ..problem import Problem
 from ..solver import ipopt_options
+from . import path_timing
 from .layout import Layout
 from .samples import sample_function
 
@@ -71,6 +77,8 @@ class SplineCurve:
 def phase_pieces(problem: Problem, k: int, packed: np.ndarray, t0: float, h: float):
     """Phase k of a solved NLP as polynomial pieces on [t0, t0 + h] (from its ``packed``)."""
     o = problem.spec.optimizer
+    if o.curve == "path_timing":
+        return path_timing.to_pieces(o.path[k], packed, t0, h)
     return SplineBasis(o.degree, coefficient_count(o)).to_pieces(np.asarray(packed), t0, h)
 
 
@@ -194,6 +202,14 @@ class _Transcription:
     def depends_on_decisions(self, expr) -> bool:
         return ca.depends_on(expr, self.layout.vector())
 
+    def node_jet(self, i: int, after: bool) -> ca.MX:
+        """Node i's CP derivatives 0..3 (2 x 4), and the fourth (2 x 5) where it is pinned."""
+        z = self.node_state(i, after)
+        P = self.flat["output"](z)
+        if self.settings.smooth_torque and i in self.alphas:
+            P = ca.horzcat(P, self.flat["fourth"](z, self.alphas[i]))
+        return P
+
 
 def rest_ends(problem: Problem) -> list[bool]:
     """Per node: a start or goal at rest whose velocities are not freed."""
@@ -242,6 +258,7 @@ def _settings_key(problem: Problem) -> tuple:
         o.samples,
         o.limits.model_dump_json(),
         o.solver.model_dump_json(),  # Ipopt options are baked into the solver
+        path_timing.structure(problem) if o.curve == "path_timing" else None,
     )
 
 
@@ -359,9 +376,23 @@ def _coefficients(tr: _Transcription, k: int, h) -> ca.MX:
     return ca.vertcat(*parts)
 
 
-def _curve(tr: _Transcription, k: int, h) -> SplineCurve:
-    """Phase k's curve, its decision blocks and boundary conditions."""
-    return SplineCurve(tr.basis, _coefficients(tr, k, h), h)
+def _curve(tr: _Transcription, k: int, h):
+    """Phase k's curve of the problem's family, its decision blocks and boundary conditions."""
+    if tr.settings.curve != "path_timing":
+        return SplineCurve(tr.basis, _coefficients(tr, k, h), h)
+    return path_timing.phase_curve(
+        tr.settings.path[k],
+        k,
+        h,
+        (tr.node_jet(k, True), tr.node_jet(k + 1, False)),
+        (
+            path_timing.zero_orders(tr.problem, k, True),
+            path_timing.zero_orders(tr.problem, k + 1, False),
+        ),
+        tr.layout,
+        tr.g,
+        (tr.names[k], tr.names[k + 1]),
+    )
 
 
 def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
