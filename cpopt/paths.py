@@ -38,20 +38,26 @@ ZERO = 1e-9
 """A node's CP derivative smaller than this [m/s^r] counts as zero (round-off of cos(pi/2))."""
 
 
-@lru_cache(maxsize=1)
-def chain_rule() -> ca.Function:
+@lru_cache(maxsize=8)
+def chain_rule(orders: int = ORDERS) -> ca.Function:
     """``(Y, s) -> y``: CP derivatives of y(t) = Y(s(t)), derived by differentiating along time.
 
     ``d/dt Y^(k)(s(t)) = Y^(k+1) s'`` and ``d/dt s^(k) = s^(k+1)``: applying this vector field
     four times to Y gives Faa di Bruno's formula, e.g.
     ``y'''' = Y'''' s'^4 + 6 Y''' s'^2 s'' + Y'' (3 s''^2 + 4 s' s''') + Y' s''''``.
 
+    Parameters
+    ----------
+    orders : int
+        How many orders (0..orders-1) to take in and give out; y^(r) needs Y, ..., Y^(r) and
+        s, ..., s^(r) only.
+
     Returns
     -------
     casadi.Function
-        Inputs: Y (2 x 5), the path and its derivatives 0..4 with respect to s at s(t) [m];
-        s (5,), the timing law and its time derivatives 0..4 [1/s^k]. Output: y (2 x 5), the CP
-        and its time derivatives 0..4 [m/s^k].
+        Inputs: Y (2 x orders), the path and its derivatives with respect to s at s(t) [m];
+        s (orders,), the timing law and its time derivatives [1/s^k]. Output: y (2 x orders),
+        the CP and its time derivatives [m/s^k].
     """
     Y = ca.SX.sym("Y", 2, ORDERS)
     s = ca.SX.sym("s", ORDERS)
@@ -60,9 +66,10 @@ def chain_rule() -> ca.Function:
     Ydot = ca.horzcat(Y[:, 1:] * s[1], ca.SX.zeros(2, 1))
     xdot = ca.vertcat(ca.vec(Ydot), s[1:], 0)
     y = [Y[:, 0]]
-    for _ in range(ORDERS - 1):
+    for _ in range(orders - 1):
         y.append(ca.jtimes(y[-1], x, xdot))
-    return ca.Function("chain_rule", [Y, s], [ca.horzcat(*y)], ["Y", "s"], ["y"])
+    inputs = [Y[:, :orders], s[:orders]]
+    return ca.Function("chain_rule", inputs, [ca.horzcat(*y)], ["Y", "s"], ["y"])
 
 
 @lru_cache(maxsize=16)
@@ -156,9 +163,10 @@ class PathShape:
 
 
 @lru_cache(maxsize=32)
-def path_jet(shape: PathShape) -> ca.Function:
-    """``(points, s) -> Y``: a path's derivatives 0..4 (2 x 5) [m] at a parameter s for control
-    points (count x 2) [m]; on a B-spline the piece is chosen by s (a CasADi ``if_else``)."""
+def path_jet(shape: PathShape, orders: int = ORDERS) -> ca.Function:
+    """``(points, s) -> Y``: a path's derivatives 0..orders-1 (2 x orders) [m] at a parameter s
+    for control points (count x 2) [m]; on a B-spline the piece is chosen by s (a CasADi
+    ``if_else``)."""
     points = ca.SX.sym("points", shape.count, 2)
     s = ca.SX.sym("s")
     b = shape.breaks
@@ -169,7 +177,7 @@ def path_jet(shape: PathShape) -> ca.Function:
         u = (s - b[p]) / w
         A = ca.mtimes(ca.DM(maps[p]), points)  # (degree + 1, 2)
         cols = []
-        for r in range(ORDERS):
+        for r in range(orders):
             terms = [
                 A[j, :].T * (factorial(j) / factorial(j - r)) * u ** (j - r)
                 for j in range(r, shape.degree + 1)
@@ -372,6 +380,31 @@ NAMES = ("y", "its velocity y'", "its acceleration y''", "its jerk y'''", "its s
 """How messages name the CP's derivatives 0..4."""
 
 
+def wandering(points: np.ndarray) -> tuple[float, float]:
+    """How far a CP path wanders (the paper's complaint about high-order time polynomials).
+
+    Parameters
+    ----------
+    points : numpy.ndarray
+        The CP along the motion (N, 2) [m], densely sampled.
+
+    Returns
+    -------
+    length_ratio : float
+        The path's length over the straight distance between its ends (1 for a straight path).
+    excursion : float
+        Its largest distance from the segment between its ends [m].
+    """
+    points = np.asarray(points, float)
+    a, b = points[0], points[-1]
+    length = np.linalg.norm(np.diff(points, axis=0), axis=1).sum()
+    chord = b - a
+    span = float(chord @ chord)
+    u = np.clip((points - a) @ chord / span, 0.0, 1.0) if span > 0 else np.zeros(len(points))
+    excursion = np.linalg.norm(points - (a + u[:, None] * chord), axis=1).max()
+    return float(length / np.sqrt(span)), float(excursion)
+
+
 def _vec(v: np.ndarray) -> str:
     v = np.asarray(v, float)
     v = np.where(np.abs(v) < 1e-9 * np.abs(v).max(), 0.0, v) + 0.0  # no "-0", no round-off
@@ -392,4 +425,5 @@ __all__ = [
     "order_fields",
     "path_jet",
     "timing_pieces",
+    "wandering",
 ]

@@ -13,6 +13,7 @@ from cpopt.paths import (
     end_conditions,
     node_mismatch,
     path_jet,
+    wandering,
 )
 
 RNG = np.random.default_rng(14)
@@ -179,3 +180,16 @@ def test_gamma_certificate_on_a_composed_curve():
     sampled = np.hypot(acc[:, 0], acc[:, 1]).min()
     assert value <= sampled + 1e-9
     assert value == pytest.approx(sampled, rel=1e-6, abs=1e-9)
+
+
+def test_wandering_of_a_detour():
+    """Out 1 m along x, up 1 m, back: length 3 over a chord of 1, excursion 1 m."""
+    leg = np.linspace(0, 1, 101)
+    points = np.vstack(
+        [np.column_stack([leg, 0 * leg]), np.column_stack([1 + 0 * leg, leg]),
+         np.column_stack([1 - leg, 1 + 0 * leg])]
+    )  # fmt: skip
+    ratio, excursion = wandering(points)
+    assert ratio == pytest.approx(3.0, rel=1e-12)  # length 3 over the chord (0, 0) -> (0, 1)
+    assert excursion == pytest.approx(1.0, rel=1e-12)
+    assert wandering(np.column_stack([leg, 2 * leg])) == pytest.approx((1.0, 0.0), abs=1e-12)

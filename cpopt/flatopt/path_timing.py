@@ -89,11 +89,11 @@ class PathTimingCurve:
         n = lam.size
         s = [
             ca.mtimes(self.timing.matrix(lam, r), self.coefficients) / self.h**r
-            for r in range(ORDERS)
+            for r in range(orders)
         ]
-        Y = path_jet(self.shape).map(n, "serial")(self.points, s[0].T)  # 2 x 5n
-        y = chain_rule().map(n, "serial")(Y, ca.horzcat(*s).T)  # 2 x 5n
-        return [y[:, r::ORDERS].T for r in range(orders)]
+        Y = path_jet(self.shape, orders).map(n, "serial")(self.points, s[0].T)  # 2 x orders n
+        y = chain_rule(orders).map(n, "serial")(Y, ca.horzcat(*s).T)  # 2 x orders n
+        return [y[:, r::orders].T for r in range(orders)]
 
     @property
     def packed(self) -> ca.MX:
