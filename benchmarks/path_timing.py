@@ -14,11 +14,14 @@ each ``--repeats`` times (the first call builds the solver, later calls reuse it
 row per method: status, objective, the torque integral on a fine grid, peak torques, build and
 solve time (median, min, max) [s], Ipopt iterations, decision variables (``core``: what the
 optimizer chooses; ``all``: with the lifted samples), and the CP path's wandering: its length
-over the straight distance between its ends, and its largest distance from the segment between
-its ends [m]. Then one line per problem, exactly (one line, split here)::
+over the straight distance between its ends, its largest distance from the segment between
+its ends [m], and the largest distance of each phase from the segment between its own nodes
+(a via state off the start-goal segment dominates the whole motion's excursion) [m]. Then one
+line per problem, exactly (one line, split here)::
 
     WANDER <problem> length_ratio path_timing=<a> bspline=<b>
-    excursion_m path_timing=<c> bspline=<d> cost_path_timing/bspline=<e>
+    excursion_m path_timing=<c> bspline=<d> phase_excursion_m path_timing=<e> bspline=<f>
+    cost_path_timing/bspline=<g>
 
 Usage::
 
@@ -60,6 +63,7 @@ class Row:
     variables: int
     length_ratio: float
     excursion: float
+    phase_excursion: float
 
 
 def problems(name: str):
@@ -85,6 +89,7 @@ def run(name: str, method: str, problem, repeats: int) -> Row:
     nlp = build(problem, sign, ())  # cached by the solve: no new build
     traj = sample(last.plan, per_phase=FINE)
     ratio, excursion = wandering(traj.cp[:, :, 0])
+    phases = [wandering(traj.cp[traj.phase == k, :, 0])[1] for k in range(len(last.plan.phases))]
     return Row(
         name,
         method,
@@ -99,13 +104,14 @@ def run(name: str, method: str, problem, repeats: int) -> Row:
         int(nlp.solver.size_in(0)[0]),
         ratio,
         excursion,
+        max(phases),
     )
 
 
 HEADER = (
     f"{'problem':17s} {'method':11s} {'status':7s} {'objective':>11s} {'cost (fine)':>11s} "
     f"{'peak tau1, tau2':>15s} {'build':>6s} {'solve med':>9s} {'min':>6s} {'max':>6s} "
-    f"{'iter':>5s} {'core':>5s} {'all':>5s} {'length':>7s} {'excursion':>9s}"
+    f"{'iter':>5s} {'core':>5s} {'all':>5s} {'length':>7s} {'excursion':>9s} {'phase exc':>9s}"
 )
 
 
@@ -115,7 +121,7 @@ def format_row(r: Row) -> str:
         f"{r.problem:17s} {r.method:11s} {r.status:7s} {r.objective:11.5g} {r.cost:11.1f} "
         f"{r.peak[0]:7.1f},{r.peak[1]:7.1f} {r.build:6.2f} {statistics.median(r.solves):9.3f} "
         f"{min(r.solves):6.3f} {max(r.solves):6.3f} {r.iterations:5d} {r.core:5d} "
-        f"{r.variables:5d} {r.length_ratio:7.3f} {r.excursion:9.4f}"
+        f"{r.variables:5d} {r.length_ratio:7.3f} {r.excursion:9.4f} {r.phase_excursion:9.4f}"
     )
 
 
@@ -124,7 +130,9 @@ def wander_line(name: str, path: Row, spline: Row) -> str:
     return (
         f"WANDER {name} length_ratio path_timing={path.length_ratio:.4f} "
         f"bspline={spline.length_ratio:.4f} excursion_m path_timing={path.excursion:.4f} "
-        f"bspline={spline.excursion:.4f} cost_path_timing/bspline={path.cost / spline.cost:.4f}"
+        f"bspline={spline.excursion:.4f} phase_excursion_m path_timing="
+        f"{path.phase_excursion:.4f} bspline={spline.phase_excursion:.4f} "
+        f"cost_path_timing/bspline={path.cost / spline.cost:.4f}"
     )
 
 

@@ -109,6 +109,7 @@ def test_readme_commands_run(command, tmp_path):
             assert re.fullmatch(
                 rf"WANDER \w+ length_ratio path_timing={number} bspline={number} "
                 rf"excursion_m path_timing={number} bspline={number} "
+                rf"phase_excursion_m path_timing={number} bspline={number} "
                 rf"cost_path_timing/bspline={number}",
                 line,
             )

@@ -67,11 +67,14 @@ def test_minimum_time_on_the_line_rides_the_torque_limits(min_time):
     assert 0.95 < min_time.plan.duration < 1.05
 
 
-def test_a_b_spline_path_on_the_same_line(straight):
+def test_a_b_spline_path_on_the_same_line():
     """A degree-4 B-spline path with 6 control points (2 pieces: the piece is chosen by s, and
     the plan is cut where s(t) crosses the knot) at the Greville abscissae of the line: it is
-    the line with the same parametrisation as the Bezier one, so the optimum is the same."""
+    the line with the same parametrisation as the Bezier one, so the optimum is the same
+    (both solved on 21 samples, to be quick)."""
     data = load_problem(PROBLEMS / "transfer_straight_line.yaml").spec.model_dump()
+    data["optimizer"].update(samples=21, free={})
+    line = solve(parse_problem(data))
     knots = SplineBasis(4, 6).knots
     greville = [knots[i + 1 : i + 5].mean() for i in range(6)]
     data["optimizer"]["path"][0].update(
@@ -81,9 +84,7 @@ def test_a_b_spline_path_on_the_same_line(straight):
     assert sol.status == "solved", sol.message
     _on_the_line(sol)
     assert sol.plan.phases[0].curve.breaks.size - 1 == 12  # 11 timing pieces, one cut
-    assert sol.metrics.torque_sq_integral == pytest.approx(
-        straight.metrics.torque_sq_integral, rel=1e-5
-    )
+    assert sol.solver.objective == pytest.approx(line.solver.objective, rel=1e-6)
 
 
 BASE = yaml.safe_load((PROBLEMS / "transfer_straight_line.yaml").read_text())
