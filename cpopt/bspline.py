@@ -77,6 +77,8 @@ def _knots(degree: int, count: int) -> np.ndarray:
 
 @lru_cache(maxsize=256)
 def _matrix(degree: int, count: int, s: tuple, order: int) -> np.ndarray:
+    if order > degree:  # a low-degree path's higher derivatives (SciPy refuses to form them)
+        return np.zeros((len(s), count))
     spline = BSpline(_knots(degree, count), np.eye(count), degree)
     if order:
         spline = spline.derivative(order)

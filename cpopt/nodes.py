@@ -90,6 +90,17 @@ def gamma_is_free(node: str, free: Mapping) -> bool:
     return any(f"{node}.{f}" in free for f in GAMMA_FIELDS)
 
 
+def freed_fields(node: str, free: Mapping, after: bool = False) -> set[str]:
+    """The fields (:data:`NODE_FIELDS`) of a node whose values are freed; ``after`` a via
+    state's eta reset, ``eta`` stands for ``eta_after``."""
+    out = {f for f in NODE_FIELDS if f"{node}.{f}" in free}
+    if after and node.startswith("via"):
+        out.discard("eta")
+        if f"{node}.eta_after" in free:
+            out.add("eta")
+    return out
+
+
 def si_bounds(free: Mapping[str, Sequence[float | None]]) -> dict[str, tuple[float, float]]:
     """Bounds of freed values from file units (``None`` for none) to SI, +-inf for none."""
     return {
@@ -108,6 +119,7 @@ __all__ = [
     "NODE_FIELDS",
     "VIA_FIELDS",
     "free_value_names",
+    "freed_fields",
     "gamma_is_free",
     "node_names",
     "node_values",

@@ -21,7 +21,9 @@ from pydantic import (
     BaseModel,
     BeforeValidator,
     ConfigDict,
+    Discriminator,
     Field,
+    Tag,
     ValidationError,
     field_validator,
 )
@@ -30,8 +32,9 @@ from . import flat
 from .dynamics import holding_torque
 from .kinematics import ReachError, inverse_derivatives, inverse_position
 from .limits import Limit, arm_limits
-from .nodes import free_value_names, gamma_is_free, node_values, si_bounds
+from .nodes import free_value_names, freed_fields, gamma_is_free, node_names, node_values, si_bounds
 from .objectives import COLLOCATION_OBJECTIVES, OBJECTIVES, weights
+from .paths import PathShape, node_mismatch, order_fields
 from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, G0, Arm, Link
 from .safe_yaml import YamlInputError, echo, key_path, read_yaml
@@ -154,10 +157,49 @@ class SolverSpec(_Spec):
     max_time: Positive = DEFAULT_MAX_TIME
 
 
+class FreePointSpec(_Spec):
+    """A free control point: its initial guess ``x``, ``y`` [m] and ``bounds``
+    [[x_lo, x_hi], [y_lo, y_hi]] [m] (null for none)."""
+
+    x: Number
+    y: Number
+    bounds: Pair(Pair(Number | None)) = [[None, None], [None, None]]
+
+
+class TimingSpec(_Spec):
+    """A phase's timing law s(t): a clamped uniform B-spline of ``degree`` with
+    ``coefficients`` coefficients on the phase's normalised time."""
+
+    degree: Annotated[int, Field(ge=5, le=11)] = 7
+    coefficients: Annotated[int, Field(ge=8, le=60)] = 16
+
+
+def _point_kind(value) -> str:
+    return "free" if isinstance(value, dict | FreePointSpec) else "fixed"
+
+
+ControlPoint = Annotated[
+    Annotated[Pair(Number), Tag("fixed")] | Annotated[FreePointSpec, Tag("free")],
+    Discriminator(_point_kind),
+]
+"""A control point: fixed ``[x, y]`` or free ``{x, y, bounds}`` (a mapping is validated as the
+free kind only, so its errors name its keys)."""
+UNION_TAGS = frozenset({"fixed", "free"})
+
+
+class PathSpec(_Spec):
+    """A phase's CP path Y(s), s in [0, 1]: ``degree`` and ``control_points``, each fixed
+    ``[x, y]`` [m] or free ``{x, y, bounds}``; the first and last are the nodes' CPs."""
+
+    degree: Annotated[int, Field(ge=1, le=7)]
+    control_points: Annotated[list[ControlPoint], Field(min_length=2)]
+    timing: TimingSpec = TimingSpec()
+
+
 class OptimizerSpec(_Spec):
     """Optimizer settings (see docs/problems.md)."""
 
-    curve: Literal["bspline", "polynomial"] = "bspline"
+    curve: Literal["bspline", "polynomial", "path_timing"] = "bspline"
     degree: Annotated[int, WHOLE, Field(ge=7, le=15)] = 8
     coefficients: Annotated[int, WHOLE, Field(ge=8, le=60)] = 14
     objective: (
@@ -170,6 +212,7 @@ class OptimizerSpec(_Spec):
     limits: LimitsSpec = LimitsSpec()
     free: dict[str, Pair(Number | None)] = {}
     solver: SolverSpec = SolverSpec()
+    path: list[PathSpec] | None = None
 
     @field_validator("objective")
     @classmethod
@@ -374,7 +417,9 @@ def _allowed_keys(loc) -> list[str]:
 
 
 def _describe(error: dict) -> tuple[str, str]:
-    loc = tuple(p for p in error["loc"] if not (isinstance(p, str) and "[" in p))
+    loc = tuple(
+        p for p in error["loc"] if not (isinstance(p, str) and ("[" in p or p in UNION_TAGS))
+    )
     path = key_path(loc)
     kind = error["type"]
     given = error.get("input")
@@ -442,6 +487,7 @@ def _check_physics(spec: ProblemSpec, source: str) -> tuple[Arm, tuple[Node, ...
         _check_gamma(spec, arm, nodes, paths, free, source)
     if spec.planner != "closed_form" and flat_plan:
         _check_optimizer(spec, len(nodes) - 1, source)
+        _check_paths(spec, arm, nodes, free, source)
     if spec.planner == "collocation":
         _check_collocation(spec, source)
     if spec.tracking is not None:
@@ -646,7 +692,9 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
     o = spec.optimizer
     ends = 5 if o.smooth_torque else 4
     why = f"{ends} boundary conditions at each end{' (smooth_torque)' if o.smooth_torque else ''}"
-    if o.curve == "bspline" and o.coefficients < o.degree + 1:
+    if o.curve == "path_timing":  # the path block has its own checks (_check_paths)
+        pass
+    elif o.curve == "bspline" and o.coefficients < o.degree + 1:
         # blame the value the file changed: a high degree, unless only coefficients was set
         only_coefficients = {"coefficients"} <= o.model_fields_set and "degree" not in (
             o.model_fields_set
@@ -659,7 +707,7 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
             "the coefficients",
         )
     count = o.coefficients if o.curve == "bspline" else o.degree + 1
-    if count < 2 * ends:
+    if o.curve != "path_timing" and count < 2 * ends:
         key = "optimizer.coefficients" if o.curve == "bspline" else "optimizer.degree"
         raise ProblemError(
             source,
@@ -676,6 +724,107 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
         )
+
+
+def _check_paths(spec: ProblemSpec, arm: Arm, nodes, free: dict, source: str) -> None:
+    """``optimizer.path``: one per phase with ``curve: path_timing`` (and only then), shapes
+    that make the CP smooth enough, ends at the nodes' CPs, and paths that can meet the nodes'
+    CP derivatives wherever these are fixed."""
+    o = spec.optimizer
+    if o.path is None:
+        if o.curve == "path_timing":
+            raise ProblemError(
+                source, "optimizer.path", "curve: path_timing needs a path per phase (degree, "
+                "control_points, timing)",
+            )  # fmt: skip
+        return
+    if o.curve != "path_timing":
+        raise ProblemError(
+            source, "optimizer.path", f"a path is used with curve: path_timing, not {o.curve}"
+        )
+    if len(o.path) != len(nodes) - 1:
+        raise ProblemError(
+            source,
+            "optimizer.path",
+            f"give one path per phase ({len(nodes) - 1}), got {len(o.path)}",
+        )
+    names = node_names(len(nodes))
+    for k, path in enumerate(o.path):
+        key = f"optimizer.path[{k}]"
+        _check_path_shape(path, key, 5 if o.smooth_torque else 4, source)
+        points = _tied_points(arm, nodes, names, path, k, free, source)
+        for i, at_end in ((k, False), (k + 1, True)):
+            _check_path_end(arm, nodes[i], names[i], path, points, key, at_end, free, source)
+
+
+def _tied_points(arm: Arm, nodes, names, path: PathSpec, k: int, free, source) -> np.ndarray:
+    """Phase k's control points (free ones at their guess) with the ends at the nodes' CPs,
+    having checked the file's ends against the nodes whose position is fixed."""
+    points = np.array([p if isinstance(p, list) else [p.x, p.y] for p in path.control_points])
+    for i, end, at_end in ((k, 0, False), (k + 1, len(points) - 1, True)):
+        cp = flat.output(nodes[i].state(after=not at_end), arm.K, arm.gravity)[:, 0]
+        fixed = not {"x", "y", "theta_deg"} & freed_fields(names[i], free, not at_end)
+        if fixed and np.hypot(*(points[end] - cp)) > 1e-4:
+            raise ProblemError(
+                source, f"optimizer.path[{k}].control_points[{end}]", f"the path's ends are "
+                f"the nodes' CPs: {names[i]}'s CP is at ({cp[0]:.7g}, {cp[1]:.7g}) m, got "
+                f"[{points[end][0]:g}, {points[end][1]:g}]",
+            )  # fmt: skip
+        points[end] = cp
+    return points
+
+
+def _check_path_shape(path: PathSpec, key: str, ends: int, source: str) -> None:
+    n, d = len(path.control_points), path.degree
+    if n < d + 1:
+        raise ProblemError(
+            source, f"{key}.control_points", f"a degree-{d} path needs at least {d + 1} control "
+            f"points, got {n}",
+        )  # fmt: skip
+    if n > d + 1 and d < 4:
+        raise ProblemError(
+            source, f"{key}.degree", f"a B-spline path (more than degree + 1 control points) must "
+            "be three times differentiable where the CP crosses its knots (the arm's state "
+            f"depends on the CP's jerk): degree >= 4, got {d}; or give {d + 1} control points "
+            "(a Bezier curve)",
+        )  # fmt: skip
+    need = max(2 * ends, path.timing.degree + 1)
+    if path.timing.coefficients < need:
+        raise ProblemError(
+            source, f"{key}.timing.coefficients", f"{path.timing.coefficients} coefficients "
+            f"cannot hold {ends} conditions at each end of a degree-{path.timing.degree} timing "
+            f"law (need >= {need})",
+        )  # fmt: skip
+    for i in (0, n - 1):
+        if not isinstance(path.control_points[i], list):
+            raise ProblemError(
+                source, f"{key}.control_points[{i}]", "the path's ends are tied to the nodes' "
+                "CPs: write them as [x, y] (free the node's x, y or theta_deg to move them)",
+            )  # fmt: skip
+
+
+def _check_path_end(
+    arm: Arm, node: Node, name: str, path: PathSpec, points: np.ndarray, key: str,
+    at_end: bool, free: dict, source: str,
+) -> None:  # fmt: skip
+    """Can the path meet the node's CP derivatives of the orders whose values are fixed (and
+    whose control points are fixed)? ``points`` holds the control points (free ones at their
+    guess), the ends at the nodes' CPs."""
+    n = len(points)
+    P = flat.output(node.state(after=not at_end), arm.K, arm.gravity)
+    freed = freed_fields(name, free, after=not at_end)
+    fields = order_fields(arm.K, arm.gravity)
+    fixed = 0  # highest order whose node values and control points are all fixed
+    order = [n - 1 - j for j in range(n)] if at_end else list(range(n))
+    for r in range(4):
+        if fields[r] & freed or (r < n and not isinstance(path.control_points[order[r]], list)):
+            break
+        fixed = r
+    shape = PathShape(path.degree, n)
+    Y = (shape.end_matrix(at_end) @ np.asarray(points, float)).T
+    problem = node_mismatch(Y, P, fixed, at_end) if fixed else None
+    if problem:
+        raise ProblemError(source, f"{key}.control_points[{order[1]}]", f"{name}: {problem}")
 
 
 def _check_collocation(spec: ProblemSpec, source: str) -> None:

@@ -20,6 +20,9 @@ OPTIMIZED = (
     "swing_up_min_time",
     "swing_up_free_via",
     "swing_up_one_phase",
+    "transfer_straight_line",
+    "transfer_min_time_on_path",
+    "swing_up_path_timing",
 )
 
 

@@ -101,6 +101,21 @@ def test_readme_commands_run(command, tmp_path):
                 r"cost_flat/collocation_gamma_N20=[0-9.]+",
                 line,
             )
+    if "path_timing.py" in command:
+        wander = [line for line in done.stdout.splitlines() if line.startswith("WANDER ")]
+        assert [w.split()[1] for w in wander] == ["transfer", "swing_up"]
+        number = r"[0-9.]+"
+        for line in wander:
+            assert re.fullmatch(
+                rf"WANDER \w+ length_ratio path_timing={number} bspline={number} "
+                rf"excursion_m path_timing={number} bspline={number} "
+                rf"phase_excursion_m path_timing={number} bspline={number} "
+                rf"cost_path_timing/bspline={number}",
+                line,
+            )
+        # the straight line does not wander; the free B-splines leave it (0.26 m, issue 14)
+        fields = dict(f.split("=") for f in wander[0].split()[3:5])
+        assert float(fields["path_timing"]) == 1.0 < float(fields["bspline"])
     if "cpopt solve" in command:
         assert (tmp_path / "out").is_dir()
         assert "solved" in done.stdout

@@ -229,3 +229,35 @@ def test_jit_compiled_solver_gives_the_same_optimum(tmp_path, monkeypatch):
     assert result.solver.objective == pytest.approx(
         TABLE["transfer_min_torque"]["objective"], rel=1e-6
     )
+
+
+def test_path_timing_swing_up_passes_the_rest_via_along_its_acceleration(optimized):
+    """At the horizontal rest via state the CP's first nonzero derivative is y'' = (xi, -g0):
+    the first path arrives against it, the second leaves along it, and the jerk (eta, 0) must
+    lie along it too, which pins eta and eta_after at 0 (docs/problems.md)."""
+    from cpopt import flat
+    from cpopt.paths import cross
+
+    sol = optimized["swing_up_path_timing"]
+    plan, arm = sol.plan, sol.plan.arm
+    via = plan.nodes[1]
+    acc = flat.output(via.state(), arm.K, arm.gravity)[:, 2]
+    assert acc == pytest.approx([plan.free_values["via[0].xi"], -9.81], abs=1e-9)
+    first, second = (ph.curve.control_points for ph in plan.phases)
+    for tangent, sense in ((first[-1] - first[-2], -1), (second[1] - second[0], 1)):
+        assert abs(cross(tangent, acc)) < 1e-7 * np.linalg.norm(tangent) * np.linalg.norm(acc)
+        assert sense * tangent @ acc > 0
+    assert abs(plan.free_values["via[0].eta"]) < 1e-6
+    assert abs(plan.free_values["via[0].eta_after"]) < 1e-6
+    # both phases meet the via state's CP derivatives 0..3 exactly
+    for k, after in ((0, False), (1, True)):
+        got = plan.phases[k].curve.derivatives(np.array([via.t]), 3)[0]
+        assert got == pytest.approx(flat.output(via.state(after), arm.K, arm.gravity), abs=1e-8)
+    # and a low-order path wanders less than the free B-splines (benchmarks/path_timing.py)
+    from cpopt.paths import wandering
+
+    ratios = [
+        wandering(sample(optimized[n].plan, per_phase=1001).cp[:, :, 0])[0]
+        for n in ("swing_up_path_timing", "swing_up_min_torque")
+    ]
+    assert ratios[0] < ratios[1]

@@ -4,7 +4,9 @@ The NLP (:mod:`~cpopt.flatopt.transcribe`) has the B-spline coefficients, the fr
 and the compensator inputs as decision variables (:mod:`~cpopt.flatopt.layout`); it starts from
 the closed form (:mod:`~cpopt.flatopt.warm_start`); after each solve gamma is certified exactly
 and the limits are checked between the samples, and samples are added where they fail
-(:mod:`~cpopt.flatopt.refine`).
+(:mod:`~cpopt.flatopt.refine`). With ``curve: path_timing`` each phase's CP follows a path at
+the pace of a timing law instead (:mod:`~cpopt.flatopt.path_timing`): another curve family
+feeding the same NLP.
 
 The sign of gamma is one for the whole motion: gamma depends on (xi, theta, thetadot), all
 continuous at via states (an eta reset does not change it), so two phases meeting at a via state
@@ -19,14 +21,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import flat
-from ..bspline import SplineBasis
 from ..nodes import gamma_is_free, node_names, nodes_from_values, to_file
 from ..objectives import weights
 from ..plan import CPPlan, Phase
 from ..problem import Problem
 from ..solver import SolverStats, run_nlp
+from .path_timing import chosen_points
 from .refine import CERTIFICATION, MAX_REFINEMENTS, between_samples, violations
-from .transcribe import FlatNLP, build, coefficient_count
+from .transcribe import FlatNLP, build, phase_pieces
 from .warm_start import initial_guess
 
 
@@ -129,14 +131,18 @@ def plan_from(problem: Problem, nlp: FlatNLP, x: np.ndarray, p: np.ndarray, sign
     n_phases = len(problem.nodes) - 1
     nodes = nodes_from_values(values, len(problem.nodes))
     times = [node.t for node in nodes]
-    basis = SplineBasis(o.degree, coefficient_count(o))
     phases = tuple(
-        Phase(basis.to_pieces(np.asarray(outs[1 + k]), times[k], times[k + 1] - times[k]), sign)
+        Phase(
+            phase_pieces(problem, k, np.asarray(outs[1 + k]), times[k], times[k + 1] - times[k]),
+            sign,
+        )
         for k in range(n_phases)
     )
     w = weights(o.objective)
     terms = {k: float(v) for k, v in zip(w, outs[1 + n_phases :], strict=True)}
     free_values = {name: to_file(name, values[name]) for name in problem.free}
+    if o.curve == "path_timing":
+        free_values.update(chosen_points(o.path, [outs[1 + k] for k in range(n_phases)]))
     plan = CPPlan(
         arm=problem.arm, nodes=tuple(nodes), phases=phases, planner="optimize",
         free_values=free_values,

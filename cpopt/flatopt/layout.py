@@ -2,7 +2,8 @@
 
 The core variables come first, in the order they were added: freed node values, compensator
 inputs at pinned nodes, the margin of a ``gamma_margin`` objective, and each phase's free
-B-spline coefficients. The lifted samples (see :mod:`cpopt.flatopt.transcribe`) follow them;
+B-spline coefficients (with ``curve: path_timing``: its free control points and timing
+coefficients). The lifted samples (see :mod:`cpopt.flatopt.transcribe`) follow them;
 they are functions of the core variables and get no bounds.
 """
 
@@ -13,7 +14,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-KINDS = ("value", "alpha", "margin", "coefficients")
+KINDS = ("value", "alpha", "margin", "coefficients", "control_points", "timing")
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,8 @@ class Block:
         The phase of a coefficient block (-1 otherwise).
     rows : tuple of int
         The rows [lo, hi) of the phase's coefficient matrix that a coefficient block holds.
+    bounds : tuple of numpy.ndarray or None
+        Lower and upper bounds per variable (a free control point's), or None for the default.
     """
 
     name: str
@@ -40,6 +43,7 @@ class Block:
     symbol: ca.MX
     phase: int = -1
     rows: tuple[int, int] = (0, 0)
+    bounds: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def size(self) -> int:
@@ -71,9 +75,13 @@ class Layout:
 
     def bounds(self, free: dict) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of the core variables: freed values within their bounds
-        (SI units), the rest unbounded."""
+        (SI units), blocks with their own bounds within them, the rest unbounded."""
         lo, hi = [], []
         for b in self.blocks:
+            if b.bounds is not None:
+                lo += list(b.bounds[0])
+                hi += list(b.bounds[1])
+                continue
             a, c = free[b.name] if b.kind == "value" else (-np.inf, np.inf)
             lo += [a] * b.size
             hi += [c] * b.size

@@ -1,6 +1,6 @@
 """Checks of an optimized plan between its samples, and the report of violated constraints.
 
-gamma is certified exactly on every polynomial piece of the B-spline (the end points and the
+gamma is certified exactly on every polynomial piece of the CP curves (the end points and the
 real roots of the derivative of |p'' + g0 e_y|^2); torque and joint-velocity limits are checked
 on a fine grid. Where either fails, the optimizer adds samples there and solves again.
 """
@@ -17,7 +17,7 @@ from ..trajectory import sample
 from .transcribe import FlatNLP
 
 CERTIFICATION = (
-    "exact minimum of |p'' + g0 e_y| over every polynomial piece of the B-spline "
+    "exact minimum of |p'' + g0 e_y| over every polynomial piece of the CP curves "
     "(end points and real roots of the derivative of its square)"
 )
 LIMIT_CHECK_SAMPLES = 2001

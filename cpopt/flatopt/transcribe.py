@@ -9,6 +9,11 @@ problem of the same structure.
 Boundary elimination: the first and last 4 coefficients of a phase (5 with ``smooth_torque``)
 are linear functions of the node values, so the boundary conditions hold exactly.
 
+A phase's curve is an object of its family (:class:`SplineCurve`, or
+:class:`~cpopt.flatopt.path_timing.PathTimingCurve` for ``curve: path_timing``) that adds its
+decision blocks and boundary conditions and yields the CP derivatives at any normalised times;
+everything after that is common to the families.
+
 Lifting: the CP derivatives of each sample are decision variables tied to the coefficients by
 linear constraints, and every sample-wise quantity (torques, joint motion, reach) goes through
 one small CasADi function of them (:mod:`cpopt.flatopt.samples`), mapped over the samples. The
@@ -30,6 +35,7 @@ from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..objectives import squared_norm, weights
 from ..problem import Problem
 from ..solver import ipopt_options
+from . import path_timing
 from .layout import Layout
 from .samples import sample_function
 
@@ -45,6 +51,35 @@ REACH_EPS = {"RRR": 1e-4, "PRR": 1e-4, "RPR": 1e-4, "PPR": -1.0}
 def coefficient_count(settings) -> int:
     """Coefficients per CP coordinate per phase of an ``optimizer`` block."""
     return settings.coefficients if settings.curve == "bspline" else settings.degree + 1
+
+
+@dataclass(frozen=True)
+class SplineCurve:
+    """One phase's CP curve of the free B-spline family (``curve: bspline`` or ``polynomial``):
+    coefficients (n x 2) on the phase's normalised time, h its duration [s]."""
+
+    basis: SplineBasis
+    coefficients: ca.MX
+    h: ca.MX
+
+    def derivatives(self, s: np.ndarray, orders: int = 5) -> list:
+        """CP derivatives 0..orders-1 at normalised times s, each (len(s), 2) [m/s^r]."""
+        return [
+            ca.mtimes(self.basis.matrix(s, r), self.coefficients) / self.h**r for r in range(orders)
+        ]
+
+    @property
+    def packed(self) -> ca.MX:
+        """What the unpacked solution holds of the phase: its coefficient matrix."""
+        return self.coefficients
+
+
+def phase_pieces(problem: Problem, k: int, packed: np.ndarray, t0: float, h: float):
+    """Phase k of a solved NLP as polynomial pieces on [t0, t0 + h] (from its ``packed``)."""
+    o = problem.spec.optimizer
+    if o.curve == "path_timing":
+        return path_timing.to_pieces(o.path[k], packed, t0, h)
+    return SplineBasis(o.degree, coefficient_count(o)).to_pieces(np.asarray(packed), t0, h)
 
 
 @dataclass
@@ -167,6 +202,14 @@ class _Transcription:
     def depends_on_decisions(self, expr) -> bool:
         return ca.depends_on(expr, self.layout.vector())
 
+    def node_jet(self, i: int, after: bool) -> ca.MX:
+        """Node i's CP derivatives 0..3 (2 x 4), and the fourth (2 x 5) where it is pinned."""
+        z = self.node_state(i, after)
+        P = self.flat["output"](z)
+        if self.settings.smooth_torque and i in self.alphas:
+            P = ca.horzcat(P, self.flat["fourth"](z, self.alphas[i]))
+        return P
+
 
 def rest_ends(problem: Problem) -> list[bool]:
     """Per node: a start or goal at rest whose velocities are not freed."""
@@ -215,6 +258,7 @@ def _settings_key(problem: Problem) -> tuple:
         o.samples,
         o.limits.model_dump_json(),
         o.solver.model_dump_json(),  # Ipopt options are baked into the solver
+        path_timing.structure(problem) if o.curve == "path_timing" else None,
     )
 
 
@@ -332,15 +376,34 @@ def _coefficients(tr: _Transcription, k: int, h) -> ca.MX:
     return ca.vertcat(*parts)
 
 
+def _curve(tr: _Transcription, k: int, h):
+    """Phase k's curve of the problem's family, its decision blocks and boundary conditions."""
+    if tr.settings.curve != "path_timing":
+        return SplineCurve(tr.basis, _coefficients(tr, k, h), h)
+    return path_timing.phase_curve(
+        tr.settings.path[k],
+        k,
+        h,
+        (tr.node_jet(k, True), tr.node_jet(k + 1, False)),
+        (
+            path_timing.zero_orders(tr.problem, k, True),
+            path_timing.zero_orders(tr.problem, k + 1, False),
+        ),
+        tr.layout,
+        tr.g,
+        (tr.names[k], tr.names[k + 1]),
+    )
+
+
 def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
-    """Everything of phase k: coefficients, samples, constraints and objective terms."""
+    """Everything of phase k: its curve, samples, constraints and objective terms."""
     times = tr.times
     h = times[k + 1] - times[k]
-    C = _coefficients(tr, k, h)
-    tr.coefficients.append(C)
+    curve = _curve(tr, k, h)
+    tr.coefficients.append(curve.packed)
     m = tr.settings.samples + (1 - tr.settings.samples % 2)  # odd, for Simpson's rule
     s = np.r_[np.linspace(0.0, 1.0, m), np.asarray(extra, float)]
-    D = [ca.mtimes(tr.basis.matrix(s, r), C) / h**r for r in range(5)]  # each (len(s), 2)
+    D = curve.derivatives(s)  # each (len(s), 2)
     # sample j's CP derivatives as the 2 x 5 block j of one 2 x 5N matrix, for the map
     P_all = ca.reshape(ca.vertcat(*[d.T for d in D]), 2, 5 * len(s))
     lifted = ca.MX.sym(f"P{k}", 2, 5 * len(s))
@@ -356,7 +419,7 @@ def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
     )
     sample = sample_function(tr.problem.arm, tr.settings.solver.jit).map(len(s), "serial")
     tau, q, qd, reach = sample(lifted, tr.sign)
-    _gamma_constraints(tr, k, C, h, s, m)
+    _gamma_constraints(tr, k, curve, s, m)
     if tr.problem.arm.kind != "PPR":
         tr.g.add(reach.T, REACH_EPS[tr.problem.arm.kind], ca.inf, f"reach (phase {k + 1})", where)
     _limit_constraints(tr, {"tau": tau, "q": q, "qd": qd}, where)
@@ -377,15 +440,13 @@ def _simpson(m: int) -> np.ndarray:
     return w / (3 * (m - 1))
 
 
-def _gamma_constraints(tr: _Transcription, k: int, C, h, s: np.ndarray, m: int) -> None:
+def _gamma_constraints(tr: _Transcription, k: int, curve, s: np.ndarray, m: int) -> None:
     """|gamma| >= gamma_min on a grid 4 times finer than the samples (gamma is cheap: the norm
-    of a quantity linear in the coefficients)."""
+    of the CP's acceleration plus g0 e_y)."""
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
     s_gamma = np.r_[np.linspace(0.0, 1.0, 4 * (m - 1) + 1), s[m:]]
-    acc = ca.mtimes(tr.basis.matrix(s_gamma, 2), C) / h**2 + ca.repmat(
-        ca.DM([[0, g0]]), len(s_gamma), 1
-    )
+    acc = curve.derivatives(s_gamma, 3)[2] + ca.repmat(ca.DM([[0, g0]]), len(s_gamma), 1)
     tr.g.add(
         ca.sum2(acc**2) - gmin**2,
         0,

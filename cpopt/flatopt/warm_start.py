@@ -15,6 +15,7 @@ from ..bspline import SplineBasis, fit
 from ..nodes import node_names, nodes_from_values
 from ..plan import CPPlan, SingularPlanError, closed_form
 from ..problem import Problem
+from .path_timing import initial_blocks, timing_guess, unpack
 from .transcribe import FlatNLP, coefficient_count
 
 
@@ -49,10 +50,10 @@ def fallback_excursion(plan: CPPlan) -> list[float]:
     return out
 
 
-def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
-    """The whole initial decision vector: core variables and the lifted samples they imply."""
+def spline_coefficients(problem: Problem, plan: CPPlan) -> list[np.ndarray]:
+    """Per phase, the closed-form curve projected onto the B-spline basis (n x 2), with the
+    fallback excursion where the closed form is singular."""
     o = problem.spec.optimizer
-    plan = initial_plan(problem, sign)
     n = coefficient_count(o)
     basis = SplineBasis(o.degree, n)
     coefficients = []
@@ -60,6 +61,18 @@ def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
         C = fit(basis, ph.curve)
         C[:, 0] += bump * np.sin(np.pi * np.linspace(0, 1, n)) ** 2
         coefficients.append(C)
+    return coefficients
+
+
+def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
+    """The whole initial decision vector: core variables and the lifted samples they imply
+    (a path-timing problem starts from its file's control points and a smooth timing law)."""
+    o = problem.spec.optimizer
+    plan = initial_plan(problem, sign)
+    if o.curve == "path_timing":
+        blocks, coefficients = initial_blocks(problem), []
+    else:
+        blocks, coefficients = {}, spline_coefficients(problem, plan)
     node_index = {name: i for i, name in enumerate(node_names(len(plan.nodes)))}
     values = problem.values
     core = []
@@ -72,7 +85,29 @@ def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
             core.extend([0.0] * block.size)
         elif block.kind == "margin":
             core.append(o.gamma_min)
-        else:
+        elif block.kind == "coefficients":
             lo, hi = block.rows
             core.extend(coefficients[block.phase][lo:hi].T.ravel())
-    return nlp.complete(np.asarray(core, float), nlp.parameters(values))
+        elif block.kind == "control_points":
+            core.extend(blocks[block.name])
+        else:  # timing
+            lo, hi = block.rows
+            core.extend(blocks[f"phase[{block.phase}].timing"][lo:hi])
+    p = nlp.parameters(values)
+    x = nlp.complete(np.asarray(core, float), p)
+    return x if o.curve != "path_timing" else _joined_timing(nlp, problem, x, p)
+
+
+def _joined_timing(nlp: FlatNLP, problem: Problem, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The initial vector with each timing law's inner coefficients joining its ends smoothly
+    (the ends follow from the nodes and the initial path)."""
+    outs = nlp.unpack(x, p)
+    paths = problem.spec.optimizer.path
+    core = np.array(x[: nlp.layout.size], float)
+    start = 0
+    for block in nlp.layout.blocks:
+        if block.kind == "timing":
+            _, c = unpack(paths[block.phase], outs[1 + block.phase])
+            core[start : start + block.size] = timing_guess(paths[block.phase], c, block.rows)
+        start += block.size
+    return nlp.complete(core, p)
