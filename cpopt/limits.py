@@ -78,4 +78,48 @@ def sampled(limit: Limit, traj) -> np.ndarray:
     return {"tau": traj.tau, "q": traj.q, "qd": traj.qd}[limit.quantity][:, limit.joint]
 
 
-__all__ = ["Limit", "arm_limits", "sampled"]
+@dataclass(frozen=True)
+class Violation:
+    """The worst place where a sampled plan leaves one limit.
+
+    Attributes
+    ----------
+    limit : Limit
+        The limit.
+    t : float
+        Where [s].
+    value : float
+        The quantity there (SI units).
+    """
+
+    limit: Limit
+    t: float
+    value: float
+
+    def message(self) -> str:
+        """One line naming the limit, the time and the value."""
+        return (
+            f"{self.limit.label} violated at t = {self.t:.4g} s (value {self.value:.4g}, "
+            f"bounds [{self.limit.lower:.4g}, {self.limit.upper:.4g}] in SI units)"
+        )
+
+
+VIOLATION_RTOL = 1e-4
+"""Relative excess over a bound that counts as a violation of a sampled plan (the flat
+optimizer itself keeps 2e-3 inside on its samples and checks 1e-6 on a fine grid; the
+trajectory's own grid may fall between those points)."""
+
+
+def violations(limits: tuple[Limit, ...], traj, rtol: float = VIOLATION_RTOL) -> list[Violation]:
+    """The limits a sampled plan violates, each at its worst sample."""
+    out = []
+    for limit in limits:
+        values = sampled(limit, traj)
+        excess = limit.excess(values)
+        j = int(np.argmax(excess))
+        if excess[j] > rtol * max(abs(limit.lower), abs(limit.upper), 1e-9):
+            out.append(Violation(limit, float(traj.t[j]), float(values[j])))
+    return out
+
+
+__all__ = ["VIOLATION_RTOL", "Limit", "Violation", "arm_limits", "sampled", "violations"]

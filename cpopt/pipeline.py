@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from . import progress
 from .budget import Budget, TimeLimitExceeded, enforced
 from .kinematics import ReachError
+from .limits import Limit, violations
 from .plan import CPPlan, SingularPlanError, closed_form
 from .problem import Problem
 from .results import Solution
@@ -49,8 +50,10 @@ def evaluate(
     samples: int = 401,
     poles=(-10.0, -10.0, -10.0, -10.0),
     message: str = "",
+    limits: tuple[Limit, ...] = (),
 ) -> Solution:
-    """Sample, measure and verify a plan; a plan that fails verification is not ``solved``.
+    """Sample, measure and verify a plan; a plan that fails verification, or leaves one of
+    the arm's limits, is not ``solved`` (``verification_failed``, ``limits_violated``).
 
     Parameters
     ----------
@@ -68,21 +71,49 @@ def evaluate(
         Tracking poles of the closed-loop verification [1/s].
     message : str
         The planner's message.
+    limits : tuple of Limit
+        The arm's limits, checked on the sampled plan.
     """
-    return _evaluate(plan, name, solver, status, samples, poles, message, StageRecord())
+    checks = Checks(samples, tuple(poles), tuple(limits))
+    return _evaluate(plan, name, solver, status, message, StageRecord(), checks)
 
 
-def _evaluate(plan, name, solver, status, samples, poles, message, partial) -> Solution:
+@dataclass(frozen=True)
+class Checks:
+    """How a plan is checked: trajectory samples per phase, poles of the closed-loop
+    verification [1/s], the arm's limits."""
+
+    samples: int = 401
+    poles: tuple = (-10.0, -10.0, -10.0, -10.0)
+    limits: tuple[Limit, ...] = ()
+
+    @classmethod
+    def of(cls, problem: Problem) -> Checks:
+        """A problem's checks (``verification`` block, ``optimizer.limits``)."""
+        v = problem.spec.verification
+        return cls(v.samples, tuple(v.poles), problem.limits)
+
+
+def limit_status(limits, traj, status: str, message: str) -> tuple[str, str]:
+    """``limits_violated`` and a message naming each limit and time, for a solved plan that
+    leaves a limit; otherwise the status and message as they were."""
+    found = violations(limits, traj)
+    if status != "solved" or not found:
+        return status, message
+    return "limits_violated", "; ".join(v.message() for v in found)
+
+
+def _evaluate(plan, name, solver, status, message, partial, checks: Checks) -> Solution:
     partial.reached("sampling the plan", plan=plan, solver=solver)
     try:
-        traj = sample(plan, per_phase=samples)
+        traj = sample(plan, per_phase=checks.samples)
     except ReachError as err:
         return Solution(
             name, "unreachable", plan.planner, plan=plan, solver=solver, message=str(err)
         )
     measured = metrics(plan, traj)
     partial.reached("verifying by simulation", trajectory=traj, metrics=measured)
-    checked = verify(plan, measured.max_passive_residual, poles)
+    checked = verify(plan, measured.max_passive_residual, checks.poles)
     if status == "solved" and not checked.passed():
         status = "verification_failed"
         if isinstance(checked, DivergedVerification):
@@ -94,6 +125,7 @@ def _evaluate(plan, name, solver, status, samples, poles, message, partial) -> S
                 f"{checked.final_state_error:.3g}, reduced-model CP error "
                 f"{checked.reduced.max_cp_error:.3g} m"
             )
+    status, message = limit_status(checks.limits, traj, status, message)
     return Solution(
         name,
         status,
@@ -137,6 +169,7 @@ def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
             f"the open-loop replay of the torques ends {checked.final_state_error:.3g} from the "
             f"goal (replay_tolerance {checked.tolerance:g})"
         )
+    status, message = limit_status(problem.limits, traj, status, message)
     return Solution(
         problem.name,
         status,
@@ -165,16 +198,14 @@ def plan_optimized(problem: Problem, partial: StageRecord) -> Solution:
             solver=result.solver,
             message=result.solver.message,
         )
-    verification = problem.spec.verification
     return _evaluate(
         result.plan,
         problem.name,
         result.solver,
         result.status,
-        verification.samples,
-        verification.poles,
         result.solver.message,
         partial,
+        Checks.of(problem),
     )
 
 
@@ -194,8 +225,7 @@ def plan_closed_form(problem: Problem, partial: StageRecord) -> Solution:
             solver=SolverStats(message=str(err)),
         )
     info = SolverStats(solve_time_s=time.perf_counter() - start, message="closed form")
-    v = spec.verification
-    return _evaluate(plan, problem.name, info, "solved", v.samples, v.poles, "", partial)
+    return _evaluate(plan, problem.name, info, "solved", "", partial, Checks.of(problem))
 
 
 PLANNERS: dict[str, Callable[[Problem, StageRecord], Solution]] = {

@@ -38,7 +38,7 @@ CSV_COLUMNS = (
 
 STATUSES = (
     "solved", "infeasible", "max_iterations", "not_converged", "singular", "unreachable",
-    "verification_failed", "time_limit",
+    "verification_failed", "limits_violated", "time_limit",
 )  # fmt: skip
 """Values of ``status``: only ``solved`` is a success."""
 
