@@ -18,6 +18,32 @@ from .mapping import mapped
 from .robot import Arm
 
 
+def lagrangian(arm, q, qd) -> tuple[ca.SX, ...]:
+    """B(q), n(q, qd) = c + g, g(q), kinetic and potential energy of an arm (SX expressions).
+
+    Parameters
+    ----------
+    arm : Arm or an object with the same fields
+        ``kind``, ``base``, ``gravity`` and ``links`` with ``length``, ``d``, ``mass`` and
+        ``I``; the link values may be CasADi symbols (a plant whose parameters are inputs).
+    q, qd : casadi.SX
+        Joint positions and velocities (3 x 1).
+    """
+    geo = link_geometry(arm, q)
+    kinetic = 0
+    potential = 0
+    for link, com, angle in zip(arm.links, geo.com, geo.angle, strict=True):
+        v = ca.jtimes(com, q, qd)
+        w = ca.jtimes(angle, q, qd) if isinstance(angle, ca.SX) else 0
+        kinetic += 0.5 * link.mass * ca.dot(v, v) + 0.5 * link.I * w**2
+        potential += link.mass * arm.gravity * com[1]
+    B = ca.simplify(ca.hessian(kinetic, qd)[0])
+    dT_dqd = ca.gradient(kinetic, qd)
+    c = ca.jtimes(dT_dqd, q, qd) - ca.gradient(kinetic, q)
+    g = ca.gradient(potential, q)
+    return B, c + g, g, kinetic, potential
+
+
 @lru_cache(maxsize=32)
 def arm_dynamics(arm: Arm) -> dict[str, ca.Function]:
     """Dynamics functions of an arm (built once per arm and cached).
@@ -39,20 +65,7 @@ def arm_dynamics(arm: Arm) -> dict[str, ca.Function]:
     tau = ca.SX.sym("tau", 2)
     a = ca.SX.sym("a", 2)
     geo = link_geometry(arm, q)
-
-    kinetic = 0
-    potential = 0
-    for link, com, angle in zip(arm.links, geo.com, geo.angle, strict=True):
-        v = ca.jtimes(com, q, qd)
-        w = ca.jtimes(angle, q, qd) if isinstance(angle, ca.SX) else 0
-        kinetic += 0.5 * link.mass * ca.dot(v, v) + 0.5 * link.I * w**2
-        potential += link.mass * arm.gravity * com[1]
-
-    B = ca.simplify(ca.hessian(kinetic, qd)[0])
-    dT_dqd = ca.gradient(kinetic, qd)
-    c = ca.jtimes(dT_dqd, q, qd) - ca.gradient(kinetic, q)
-    g = ca.gradient(potential, q)
-    n = c + g
+    B, n, g, kinetic, potential = lagrangian(arm, q, qd)
     generalized = B @ qdd + n
     actuation = ca.vertcat(ca.SX.eye(2), ca.SX.zeros(1, 2))
     qdd_forward = ca.solve(B, actuation @ tau - n)
