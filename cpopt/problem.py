@@ -125,7 +125,6 @@ class SolverSpec(_Spec):
     max_iter: Annotated[int, Field(gt=0)] = 1000
     tol: Positive = 1e-8
     print_level: Annotated[int, Field(ge=0, le=12)] = 0
-    jit: bool = False
     mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
 
 
@@ -240,6 +239,25 @@ class Problem:
         solver = opt.solver.model_copy(update={"print_level": level})
         spec = self.spec.model_copy(update={"optimizer": opt.model_copy(update={"solver": solver})})
         return replace(self, spec=spec)
+
+
+REMOVED_KEYS = {
+    ("optimizer", "solver", "jit"): (
+        "this key was removed: the optimizer's per-sample functions are now always compiled to "
+        "C once per arm kind and cached in the user's cache folder (no setting needed; see "
+        "'Compiled samples' in docs/problems.md); delete the key"
+    ),
+}
+"""Keys that older files may have, with what replaced them."""
+
+
+def _check_removed_keys(data: dict, source: str) -> None:
+    for path, why in REMOVED_KEYS.items():
+        node = data
+        for key in path[:-1]:
+            node = node.get(key) if isinstance(node, dict) else None
+        if isinstance(node, dict) and path[-1] in node:
+            raise ProblemError(source, ".".join(path), why)
 
 
 def _key_path(loc) -> str:
@@ -459,6 +477,7 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
     if not isinstance(data, dict):
         kind = "an empty document" if data is None else f"a {type(data).__name__}"
         raise ProblemError(source, "", f"expected a mapping with keys arm, motion, ...; got {kind}")
+    _check_removed_keys(data, source)
     try:
         spec = ProblemSpec.model_validate(data)
     except ValidationError as err:

@@ -56,9 +56,7 @@ def test_optimized_plans_are_verified_and_certified(optimized, name):
     assert "exact minimum" in sol.solver.details.certification
     # the sampled objective is close to the same integral on the fine grid
     if "torque" in sol.solver.cost_terms and len(sol.solver.cost_terms) == 1:
-        assert sol.solver.objective == pytest.approx(
-            sol.metrics.torque_sq_integral, rel=0.02
-        )
+        assert sol.solver.objective == pytest.approx(sol.metrics.torque_sq_integral, rel=0.02)
 
 
 def test_optimized_swing_up_beats_the_paper(optimized, paper_solutions):
@@ -219,13 +217,11 @@ def test_v_squared_objective_and_polynomial_curves(paper_solutions):
     assert 3000 < poly.metrics.torque_sq_integral < 12953  # fewer freedoms than the B-spline
 
 
-def test_jit_compiled_solver_gives_the_same_optimum(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)  # CasADi writes its generated C file to the working folder
-    data = load_problem(PROBLEMS / "transfer_min_torque.yaml").spec.model_dump()
-    data["optimizer"]["gamma_sign"] = ["positive"]
-    data["optimizer"]["solver"]["jit"] = True
-    result = optimize(parse_problem(data))
-    assert result.status == "solved"
-    assert result.solver.objective == pytest.approx(
-        TABLE["transfer_min_torque"]["objective"], rel=1e-6
+def test_removed_jit_key_names_its_replacement(tmp_path, capsys):
+    path = tmp_path / "old.yaml"
+    path.write_text(
+        INFEASIBLE.replace("solver: {max_iter: 60}", "solver: {max_iter: 60, jit: true}")
     )
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "optimizer.solver.jit" in err and "compiled" in err and "cache" in err
