@@ -22,7 +22,7 @@ from . import flat
 from .kinematics import ReachError, inverse_derivatives, inverse_position
 from .limits import Limit, arm_limits
 from .nodes import free_value_names, gamma_is_free, node_values, si_bounds
-from .objectives import COLLOCATION_OBJECTIVES, OBJECTIVES, weights
+from .objectives import COLLOCATION_OBJECTIVES, LEAST_SQUARES, LINEAR, OBJECTIVES, weights
 from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, Arm, Link
 
@@ -120,12 +120,14 @@ class LimitsSpec(_Spec):
 
 
 class SolverSpec(_Spec):
-    """Ipopt settings."""
+    """Ipopt settings; ``hessian`` None means the objective's default
+    (:func:`cpopt.objectives.default_hessian`)."""
 
     max_iter: Annotated[int, Field(gt=0)] = 1000
     tol: Positive = 1e-8
     print_level: Annotated[int, Field(ge=0, le=12)] = 0
     mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
+    hessian: Literal["exact", "gauss_newton"] | None = None
 
 
 class OptimizerSpec(_Spec):
@@ -412,6 +414,14 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
     if weights(o.objective).get("duration") and "duration" not in o.free:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
+        )
+    not_squares = sorted(set(weights(o.objective)) - LEAST_SQUARES - LINEAR)
+    if o.solver.hessian == "gauss_newton" and not_squares:
+        raise ProblemError(
+            source,
+            "optimizer.solver.hessian",
+            f"gauss_newton needs a least-squares objective ({', '.join(sorted(LEAST_SQUARES))}, "
+            f"plus {', '.join(sorted(LINEAR))}); {', '.join(not_squares)} is not one: use exact",
         )
 
 

@@ -13,6 +13,7 @@ import pytest
 
 from cpopt.cli import main
 from cpopt.flatopt import optimize
+from cpopt.objectives import default_hessian
 from cpopt.pipeline import solve
 from cpopt.problem import load_problem, parse_problem
 from cpopt.trajectory import sample
@@ -182,9 +183,10 @@ def test_singular_closed_form_is_rescued_by_the_fallback_warm_start(optimized):
     assert sol.metrics.min_abs_gamma >= 2.0 * (1 - 1e-6)
 
 
-def _variant(**settings):
+def _variant(hessian=None, **settings):
     data = load_problem(PROBLEMS / "swing_up_min_torque.yaml").spec.model_dump()
     data["optimizer"].update(gamma_sign=["negative", "negative"], **settings)
+    data["optimizer"]["solver"]["hessian"] = hessian
     return solve(parse_problem(data))
 
 
@@ -212,9 +214,23 @@ def test_v_squared_objective_and_polynomial_curves(paper_solutions):
     paper = paper_solutions["paper_swing_up"].trajectory
     paper_v2 = np.trapezoid((paper.cp[:, :, 4] ** 2).sum(axis=1), paper.t)
     assert sol.solver.objective < paper_v2
+    # the Gauss-Newton and the exact Hessian find the same optimum (v is linear in the
+    # coefficients: they differ only by the curvature of the reach constraints)
+    other = "exact" if default_hessian("v_squared") != "exact" else "gauss_newton"
+    again = _variant(objective="v_squared", hessian=other)
+    assert again.solver.objective == pytest.approx(sol.solver.objective, rel=1e-7)
     poly = _variant(curve="polynomial", degree=11)
     assert poly.status == "solved", poly.message
     assert 3000 < poly.metrics.torque_sq_integral < 12953  # fewer freedoms than the B-spline
+
+
+def test_gauss_newton_needs_a_least_squares_objective(tmp_path, capsys):
+    path = tmp_path / "energy.yaml"
+    text = INFEASIBLE.replace("solver: {max_iter: 60}", "solver: {hessian: gauss_newton}")
+    path.write_text(text.replace("samples: 21", "objective: energy"))
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "optimizer.solver.hessian" in err and "energy" in err
 
 
 def test_removed_jit_key_names_its_replacement(tmp_path, capsys):

@@ -29,7 +29,7 @@ from .. import flat
 from ..bspline import SplineBasis
 from ..limits import Limit
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
-from ..objectives import squared_norm, weights
+from ..objectives import default_hessian, squared_norm, weights
 from ..problem import Problem
 from ..solver import ipopt_options
 from .assemble import SampleBlock, assemble
@@ -40,6 +40,9 @@ from .samples import NY, QD, REACH, TAU, Q, mapped_outputs
 GAMMA_SAFETY = 2e-3
 """Relative margin added to gamma_min on the sample grid (the exact certificate after the solve
 then rarely needs a refinement round)."""
+CURVATURE = {"exact": "all", "gauss_newton": "none"}
+"""The curvature of the samples' outputs each ``optimizer.solver.hessian`` keeps
+(:data:`cpopt.flatopt.assemble.CURVATURE`)."""
 LIMIT_SAFETY = 2e-3
 """Relative margin kept from torque and velocity limits on the sample grid."""
 REACH_EPS = {"RRR": 1e-4, "PRR": 1e-4, "RPR": 1e-4, "PPR": -1.0}
@@ -478,7 +481,8 @@ def _finish(tr: _Transcription, start: float) -> FlatNLP:
     p_names = [n for n in tr.sym if n not in tr.problem.free]
     p = ca.vertcat(*[tr.sym[n] for n in p_names])
     g = ca.vertcat(*tr.g.exprs)
-    nlp = assemble(x, p, cost, g, tr.blocks, tr.problem.arm)
+    hessian = o.solver.hessian or default_hessian(o.objective)
+    nlp = assemble(x, p, cost, g, tr.blocks, tr.problem.arm, CURVATURE[hessian])
     opts = {
         "print_time": False,
         "show_eval_warnings": False,
