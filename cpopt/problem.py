@@ -142,7 +142,7 @@ class OptimizerSpec(_Spec):
     gamma_min: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 2.0
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     smooth_torque: bool = True
-    samples: Annotated[int, Field(ge=10, le=1000)] = 40
+    samples: Annotated[int, Field(ge=10, le=1000)] = 50
     limits: LimitsSpec = LimitsSpec()
     free: dict[str, Pair(Number | None)] = {}
     solver: SolverSpec = SolverSpec()

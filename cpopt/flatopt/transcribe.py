@@ -34,7 +34,7 @@ from ..problem import Problem
 from ..solver import ipopt_options
 from .assemble import SampleBlock, assemble
 from .layout import Layout
-from .quadrature import PhaseSamples, simpson
+from .quadrature import Grid, PhaseSamples, piece_counts
 from .samples import NY, QD, REACH, TAU, Q, mapped_outputs
 
 GAMMA_SAFETY = 2e-3
@@ -43,6 +43,8 @@ then rarely needs a refinement round)."""
 CURVATURE = {"exact": "all", "gauss_newton": "none"}
 """The curvature of the samples' outputs each ``optimizer.solver.hessian`` keeps
 (:data:`cpopt.flatopt.assemble.CURVATURE`)."""
+GAMMA_GRID = 241
+"""Points per phase where |gamma| >= gamma_min is a constraint (then certified exactly)."""
 LIMIT_SAFETY = 2e-3
 """Relative margin kept from torque and velocity limits on the sample grid."""
 REACH_EPS = {"RRR": 1e-4, "PRR": 1e-4, "RPR": 1e-4, "PPR": -1.0}
@@ -233,8 +235,15 @@ def _settings_key(problem: Problem) -> tuple:
 _CACHE: dict = {}
 
 
-def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
-    """Build (or fetch) the NLP for a problem structure, a sign of gamma and extra samples.
+def initial_grids(problem: Problem) -> tuple[Grid, ...]:
+    """Each phase's sample grid before any refinement (:mod:`cpopt.flatopt.quadrature`)."""
+    o = problem.spec.optimizer
+    pieces = SplineBasis(o.degree, coefficient_count(o)).breaks.size - 1
+    return (Grid(piece_counts(o.samples, pieces)),) * (len(problem.nodes) - 1)
+
+
+def build(problem: Problem, sign: int, grids: tuple[Grid, ...] | None = None) -> FlatNLP:
+    """Build (or fetch) the NLP for a problem structure, a sign of gamma and sample grids.
 
     Parameters
     ----------
@@ -243,16 +252,17 @@ def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
         fixed values are parameters of the returned solver.
     sign : int
         The sign of gamma, +1 or -1.
-    extra : tuple
-        Per phase, normalised times of samples added by refinement (or empty).
+    grids : tuple of Grid, optional
+        Each phase's samples (default :func:`initial_grids`; refinement adds to them).
     """
+    grids = initial_grids(problem) if grids is None else grids
     holding = holding_pattern(problem, sign)
     key = (
         problem.arm,
         len(problem.nodes),
         tuple(sorted(problem.free)),
         sign,
-        extra,
+        grids,
         holding,
         _settings_key(problem),
     )
@@ -262,7 +272,7 @@ def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
         tr = _Transcription(problem, sign, holding, sym)
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
-            _phase(tr, k, extra[k] if extra else ())
+            _phase(tr, k, grids[k].samples())
         _holding_constraints(tr)
         _whole_motion_terms(tr)
         _CACHE[key] = _finish(tr, start)
@@ -344,24 +354,18 @@ def _coefficients(tr: _Transcription, k: int, h) -> ca.MX:
     return ca.vertcat(*parts)
 
 
-def phase_samples(problem: Problem, extra: tuple) -> PhaseSamples:
-    """Where a phase is sampled: the quadrature points and the constraint-only ``extra``."""
-    return simpson(problem.spec.optimizer.samples).with_extra(extra)
-
-
 def basis_matrix(basis: SplineBasis, s: np.ndarray, order: int) -> ca.DM:
     """The basis matrix as a sparse CasADi matrix: its structural zeros keep every sample
     depending on the few coefficients of its piece (a dense one makes Jacobians dense)."""
     return ca.sparsify(ca.DM(basis.matrix(s, order)))
 
 
-def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
+def _phase(tr: _Transcription, k: int, samples: PhaseSamples) -> None:
     """Everything of phase k: coefficients, samples, constraints and objective terms."""
     times = tr.times
     h = times[k + 1] - times[k]
     C = _coefficients(tr, k, h)
     tr.coefficients.append(C)
-    samples = phase_samples(tr.problem, extra)
     tr.samples.append(samples)
     s, m = samples.s, samples.quadrature
     D = [ca.mtimes(basis_matrix(tr.basis, s, r), C) / h**r for r in range(5)]  # (len(s), 2)
@@ -399,12 +403,11 @@ def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
 
 
 def _gamma_constraints(tr: _Transcription, k: int, C, h, extra: np.ndarray) -> None:
-    """|gamma| >= gamma_min on a grid 4 times finer than the samples (gamma is cheap: the norm
-    of a quantity linear in the coefficients)."""
+    """|gamma| >= gamma_min on :data:`GAMMA_GRID` equally spaced points and at the extra
+    samples (gamma is cheap: the norm of a quantity linear in the coefficients)."""
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
-    m = simpson(tr.settings.samples).quadrature
-    s_gamma = np.r_[np.linspace(0.0, 1.0, 4 * (m - 1) + 1), extra]
+    s_gamma = np.r_[np.linspace(0.0, 1.0, GAMMA_GRID), extra]
     acc = ca.mtimes(basis_matrix(tr.basis, s_gamma, 2), C) / h**2 + ca.repmat(
         ca.DM([[0, g0]]), len(s_gamma), 1
     )
