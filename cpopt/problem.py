@@ -167,6 +167,7 @@ class CollocationSpec(_Spec):
     degree: Annotated[int, Field(ge=1, le=9)] = 3
     steps: Annotated[int, Field(ge=1, le=20)] = 1
     gamma_constraint: bool = True
+    solver: Literal["ipopt", "fatrop"] = "ipopt"
     warm_start: Literal["none", "flat"] = "none"
     replay_tolerance: Positive = 1e-3
 
@@ -441,6 +442,28 @@ def _check_collocation(spec: ProblemSpec, source: str) -> None:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
         )
+    if spec.collocation.solver == "fatrop":
+        _check_fatrop(spec, source)
+
+
+def _check_fatrop(spec: ProblemSpec, source: str) -> None:
+    """Fatrop needs the single-stage, fixed-time structure it detects (see docs/problems.md)."""
+    why = None
+    if spec.motion.via:
+        why = (
+            f"fatrop solves single-phase problems only (this one has {len(spec.motion.via) + 1} "
+            "phases: rockit's multi-stage transcription defeats Fatrop's structure detection)"
+        )
+    elif spec.collocation.method != "multiple_shooting":
+        why = "fatrop needs collocation.method: multiple_shooting (rockit's direct collocation "
+        why += "does not give Fatrop its stage structure)"
+    elif {"duration"} & set(spec.optimizer.free) or "gamma_margin" in weights(
+        spec.optimizer.objective
+    ):
+        why = "fatrop needs a fixed duration and no gamma_margin objective (a free time or a "
+        why += "margin variable is shared by all stages, which Fatrop's structure cannot hold)"
+    if why:
+        raise ProblemError(source, "collocation.solver", why + "; use solver: ipopt")
 
 
 def _check_gamma(arm, nodes, paths, free, source) -> None:
