@@ -101,6 +101,14 @@ def test_readme_commands_run(command, tmp_path):
                 r"cost_flat/collocation_gamma_N20=[0-9.]+",
                 line,
             )
+        speeds = [line for line in done.stdout.splitlines() if line.startswith("SPEED ")]
+        assert [s.split()[1] for s in speeds] == ["transfer", "swing_up"]
+        for line in speeds:
+            assert re.fullmatch(
+                r"SPEED \w+ flat_solve=[0-9.]+ flat_cold=[0-9.]+ "
+                r"collocation_gamma_N10_solve=[0-9.]+ fatrop_gamma_N10_solve=[0-9.]+",
+                line,
+            )
     if "cpopt solve" in command:
         assert (tmp_path / "out").is_dir()
         assert "solved" in done.stdout
