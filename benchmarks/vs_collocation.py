@@ -75,6 +75,8 @@ class Row:
 
 
 def _load(name: str, quick: bool, coefficients: int | None = None):
+    """A benchmark problem; with ``coefficients``, as many samples per B-spline piece as the
+    file has (``optimizer.samples`` counts samples per phase)."""
     from cpopt.problem import load_problem, parse_problem
 
     problem = load_problem(ROOT / "problems" / f"{name}.yaml")
@@ -84,7 +86,10 @@ def _load(name: str, quick: bool, coefficients: int | None = None):
         if quick:
             opt.update(coefficients=14, samples=50)
         if coefficients:
+            pieces = opt["coefficients"] - opt["degree"]
+            per_piece = opt["samples"] / (pieces + 4)
             opt["coefficients"] = coefficients
+            opt["samples"] = round(per_piece * (coefficients - opt["degree"] + 4))
         problem = parse_problem(data, problem.source, problem.name)
     return problem
 
@@ -232,13 +237,14 @@ def main(argv=None) -> int:
         print(format_row(rows[-1]), flush=True)
         for count in scaling_coefficients:
             scaled = _load(name, False, count)
-            scaling.append(run_flat(scaled, max(1, repeats // 2), f"{count} coef"))
+            label = f"{count} coef/{scaled.spec.optimizer.samples} smp"
+            scaling.append(run_flat(scaled, max(1, repeats // 2), label))
     if scaling:
         print("\nscaling: flat solve time [s] against B-spline coefficients per coordinate")
         for r in scaling:
             print(
-                f"  {r.problem:10s} {r.size:10s} {r.median:8.3f}  iter {r.iterations:4d}"
-                f"  cost {r.cost:10.1f}"
+                f"  {r.problem:10s} {r.size:16s} {r.median:8.3f}  iter {r.iterations:4d}"
+                f"  cost {r.cost:10.1f}  {r.status}"
             )
     print("scaling: collocation_gamma solve time [s] against N")
     for r in rows:

@@ -26,9 +26,10 @@ import numpy as np
 from ..robot import Arm
 from .samples import NY, arm_vector, sample_library
 
-CURVATURE = ("all", "constraints", "none")
-"""Curvature of the samples' outputs kept in the Hessian: ``all`` (exact), ``constraints`` (of
-the constraint rows only), ``none`` (Gauss-Newton: J' L_YY J alone)."""
+CURVATURE = ("all", "none")
+"""Curvature of the samples' outputs kept in the Hessian: ``all`` (exact) or ``none``
+(Gauss-Newton: J' L_YY J alone; keeping the curvature of the constraint rows was measured no
+better, see ``optimizer.solver.hessian`` in docs/problems.md)."""
 
 
 @dataclass(frozen=True)
@@ -76,7 +77,7 @@ def _block_diagonal(values: ca.MX, block: ca.Sparsity, count: int) -> ca.MX:
     return ca.sparsity_cast(values, ca.diagcat(*([block] * count)))
 
 
-def _cheap_functions(x, p, Y, f, g, curvature: str) -> dict[str, ca.Function]:
+def _cheap_functions(x, p, Y, f, g) -> dict[str, ca.Function]:
     """The expanded (SX) functions of everything but the samples' outputs and their derivatives
     with respect to x and Y (see the module docstring)."""
     F = ca.Function("cheap", [x, p, Y], [f, g]).expand()
@@ -86,15 +87,13 @@ def _cheap_functions(x, p, Y, f, g, curvature: str) -> dict[str, ca.Function]:
     fs, gs = F(xs, ps, Ys)
     y = ca.vec(Ys)
     count = Y.shape[1]
-    lag_g = ca.dot(lam_g, gs)
-    lag = lam_f * fs + lag_g
-    mu_all = ca.gradient(lag, y)
-    mu = {"all": mu_all, "constraints": ca.gradient(lag_g, y), "none": ca.DM.zeros(y.numel())}
-    Hyy = ca.jacobian(mu_all, y)
+    lag = lam_f * fs + ca.dot(lam_g, gs)
+    mu = ca.gradient(lag, y)
+    Hyy = ca.jacobian(mu, y)
     W = ca.horzcat(*[Hyy[NY * j : NY * (j + 1), NY * j : NY * (j + 1)] for j in range(count)])
     Hxx, lag_x = ca.hessian(lag, xs)
     hess_ins = [xs, ps, Ys, lam_f, lam_g]
-    hess_outs = [ca.triu(Hxx), ca.reshape(mu[curvature], NY, count), ca.densify(W)]
+    hess_outs = [ca.triu(Hxx), ca.reshape(mu, NY, count), ca.densify(W)]
     hess_outs.append(ca.jacobian(lag_x, y))
     return {
         "value": ca.Function("cheap_value", [xs, ps, Ys], [fs, gs]),
@@ -106,6 +105,62 @@ def _cheap_functions(x, p, Y, f, g, curvature: str) -> dict[str, ca.Function]:
         ),
         "hess": ca.Function("cheap_hess", hess_ins, hess_outs),
     }
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """The samples as seen from x: P(x), signs, the arm's parameters, the library."""
+
+    S: ca.DM  # x -> vec(P): a selection of x (the blocks lie in x in this order)
+    P: ca.MX
+    sigma: ca.DM
+    arm: ca.DM
+    count: int
+    library: dict
+
+    def map(self, name: str, *extra) -> list:
+        """The outputs of the library's function ``name`` over every sample."""
+        mapped = self.library[name].map(self.count)
+        return mapped.call([self.P, self.sigma, self.arm, *extra])
+
+    def jacobian(self, J: ca.MX) -> ca.MX:
+        """d vec(Y)/dx (9N x nx) from the mapped Jacobians J (9 x 10N)."""
+        blocks = _block_diagonal(J, self.library["sample_jac"].sparsity_out(1), self.count)
+        return ca.mtimes(blocks, self.S)
+
+
+def _samples(x: ca.MX, blocks: list[SampleBlock], arm: Arm) -> _Samples:
+    lifted = ca.vec(ca.horzcat(*[b.P for b in blocks]))
+    S = ca.DM(ca.Function("s", [x], [ca.jacobian(lifted, x)]).sparsity_out(0), 1.0)
+    count = sum(b.Y.shape[1] for b in blocks)
+    return _Samples(
+        S=S,
+        P=ca.reshape(ca.mtimes(S, x), 2, 5 * count),
+        sigma=ca.DM(np.concatenate([b.sigma for b in blocks])).T,
+        arm=ca.DM(arm_vector(arm)),
+        count=count,
+        library=sample_library(arm.kind).functions,
+    )
+
+
+def _hessian(x, p, cheap: dict, samples: _Samples, curvature: str) -> ca.Function:
+    """``hess_lag(x, p, lam_f, lam_g)``: the upper triangle of the Hessian of the Lagrangian."""
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", cheap["value"].size1_out(1))
+    coupled = cheap["hess"].sparsity_out(3).nnz() > 0  # objective weights depend on x
+    y, J = samples.map("sample_jac") if coupled else (samples.map("sample")[0], None)
+    Hxx, mu, W, Hxy = cheap["hess"](x, p, y, lam_f, lam_g)
+    if curvature == "none":
+        block = samples.library["sample_gn"].sparsity_out(0)
+        per_sample = samples.map("sample_gn", W)[0]
+    else:
+        block = samples.library["sample_hess"].sparsity_out(0)
+        per_sample = samples.map("sample_hess", mu, W)[0]
+    HB = _block_diagonal(per_sample, block, samples.count)
+    H = Hxx + ca.mtimes(samples.S.T, ca.mtimes(HB, samples.S))
+    if coupled:
+        cross = ca.mtimes(Hxy, samples.jacobian(J))
+        H = H + ca.triu(cross + cross.T)
+    return ca.Function("hess_lag", [x, p, lam_f, lam_g], [H])
 
 
 def assemble(
@@ -135,47 +190,21 @@ def assemble(
     if curvature not in CURVATURE:
         raise ValueError(f"curvature must be one of {CURVATURE}, got {curvature!r}")
     Y = ca.horzcat(*[b.Y for b in blocks])
-    count = Y.shape[1]
-    lib = sample_library(arm.kind).functions
-    sigma = ca.DM(np.concatenate([b.sigma for b in blocks])).T
-    av = ca.DM(arm_vector(arm))
-    # x -> all samples' P: a selection of x (the blocks lie in x in this order)
-    lifted = ca.vec(ca.horzcat(*[b.P for b in blocks]))
-    S = ca.DM(ca.Function("s", [x], [ca.jacobian(lifted, x)]).sparsity_out(0), 1.0)
-    P = ca.reshape(ca.mtimes(S, x), 2, 5 * count)
-    y_of_x = lib["sample"].map(count)(P, sigma, av)
-    cheap = _cheap_functions(x, p, Y, f, g, curvature)
-    f_x, g_x = cheap["value"](x, p, y_of_x)
-
-    y_jac, J = lib["sample_jac"].map(count)(P, sigma, av)
-    JY = ca.mtimes(_block_diagonal(J, lib["sample_jac"].sparsity_out(1), count), S)  # (9N x nx)
+    samples = _samples(x, blocks, arm)
+    cheap = _cheap_functions(x, p, Y, f, g)
+    y = samples.map("sample")[0]
+    f_x, g_x = cheap["value"](x, p, y)
+    y_jac, J = samples.map("sample_jac")
+    JY = samples.jacobian(J)
     _, fx, fy = cheap["grad"](x, p, y_jac)
-    grad_f = ca.Function("grad_f", [x, p], [f_x, fx + ca.mtimes(JY.T, fy)])
     gj, gx, gy = cheap["jac"](x, p, y_jac)
-    jac_g = ca.Function("jac_g", [x, p], [gj, gx + ca.mtimes(gy, JY)])
-
-    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
-    coupled = cheap["hess"].sparsity_out(3).nnz() > 0  # objective weights depend on x
-    Hxx, mu, W, Hxy = cheap["hess"](x, p, y_jac if coupled else y_of_x, lam_f, lam_g)
-    if curvature == "none":
-        hess = lib["sample_gn"]
-        blocks_h = hess.map(count)(P, sigma, av, W)
-    else:
-        hess = lib["sample_hess"]
-        blocks_h = hess.map(count)(P, sigma, av, mu, W)
-    HB = _block_diagonal(blocks_h, hess.sparsity_out(0), count)
-    H = Hxx + ca.mtimes(S.T, ca.mtimes(HB, S))
-    if coupled:
-        cross = ca.mtimes(Hxy, JY)
-        H = H + ca.triu(cross + cross.T)
-    hess_lag = ca.Function("hess_lag", [x, p, lam_f, lam_g], [H])
     options = {
-        "grad_f": grad_f,
-        "jac_g": jac_g,
-        "hess_lag": hess_lag,
+        "grad_f": ca.Function("grad_f", [x, p], [f_x, fx + ca.mtimes(JY.T, fy)]),
+        "jac_g": ca.Function("jac_g", [x, p], [gj, gx + ca.mtimes(gy, JY)]),
+        "hess_lag": _hessian(x, p, cheap, samples, curvature),
         # the library has no CasADi derivatives: nlpsol must not differentiate f or g itself
         "expand": False,
         "no_nlp_grad": True,
         "calc_lam_p": False,
     }
-    return Assembled(f_x, g_x, options, ca.Function("outputs", [x, p], [y_of_x]))
+    return Assembled(f_x, g_x, options, ca.Function("outputs", [x, p], [y]))
