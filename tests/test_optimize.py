@@ -64,7 +64,7 @@ def test_optimized_plans_are_verified_and_certified(optimized, name):
 def test_optimized_swing_up_beats_the_paper(optimized, paper_solutions):
     paper = paper_solutions["paper_swing_up"].metrics
     best = optimized["swing_up_min_torque"].metrics
-    assert best.torque_sq_integral < 0.3 * paper.torque_sq_integral  # 3429 vs 12953
+    assert best.torque_sq_integral < 0.3 * paper.torque_sq_integral  # 3425 vs 12953
     assert max(best.peak_torque) < 0.5 * max(paper.peak_torque)
 
 
