@@ -7,8 +7,8 @@ generating it: an index file named by a hash of the generating source files, the
 the CasADi version and the compiler flags points at the library file, which is itself named by a
 hash of its code. Every file is written under a temporary name and moved into place
 (``os.replace``), so two processes may build the same library at once and neither reads half a
-file. Without a compiler, or when compiling fails, the functions run interpreted and one line on
-the ``cpopt`` logger (stderr by default) says so.
+file. Compiling says so in one line on the ``cpopt`` logger (stderr by default); without a
+compiler, or when compiling fails, the functions run interpreted and one line says so.
 """
 
 from __future__ import annotations
@@ -152,7 +152,8 @@ def load_library(
     try:
         directory.mkdir(parents=True, exist_ok=True)
         if not path.exists():
-            LOG.info("cpopt: compiling %s once (%s %s) into %s", name, cc, " ".join(FLAGS), path)
+            # a one-time wait of seconds: say so (the default handler shows warnings only)
+            LOG.warning("cpopt: compiling %s once with %s (cached in %s)", name, cc, directory)
             tic = time.perf_counter()
             _compile(code, path, cc)
             LOG.info("cpopt: compiled %s in %.1f s", name, time.perf_counter() - tic)
