@@ -45,6 +45,23 @@ def closed_loop_field(z, alpha, K, g0):
     return zdot, a
 
 
+def cp_derivatives(z, alpha, K, g0) -> tuple[ca.SX, ca.SX, list]:
+    """The CP and its derivatives 0..4 along the closed-loop field, for symbols z and alpha.
+
+    Returns
+    -------
+    zdot, a : casadi.SX
+        The state derivative (8) and the base acceleration (2).
+    derivs : list of casadi.SX
+        The CP's derivatives 0..4 (each 2,).
+    """
+    zdot, a = closed_loop_field(z, alpha, K, g0)
+    derivs = [z[0:2] + K * ca.vertcat(ca.cos(z[2]), ca.sin(z[2]))]
+    for _ in range(4):
+        derivs.append(ca.jtimes(derivs[-1], z, zdot))
+    return zdot, a, derivs
+
+
 def compensator_expressions(z, v, K, g0):
     """The dynamic compensator (5)-(8) for a desired CP fourth derivative, as expressions.
 
@@ -62,10 +79,7 @@ def compensator_expressions(z, v, K, g0):
     """
     zs = ca.SX.sym("z", 8)
     alpha = ca.SX.sym("alpha", 2)
-    zdot, a = closed_loop_field(zs, alpha, K, g0)
-    derivs = [zs[0:2] + K * ca.vertcat(ca.cos(zs[2]), ca.sin(zs[2]))]
-    for _ in range(4):
-        derivs.append(ca.jtimes(derivs[-1], zs, zdot))
+    zdot, a, derivs = cp_derivatives(zs, alpha, K, g0)
     fourth = derivs[4]
     # the fourth derivative is affine in alpha: A and b at alpha = 0 (cancelling terms vanish)
     A = ca.substitute(ca.jacobian(fourth, alpha), alpha, ca.DM.zeros(2))
@@ -117,11 +131,7 @@ def flat_functions(K: float, g0: float) -> dict[str, ca.Function]:
     z = ca.SX.sym("z", 8)
     alpha = ca.SX.sym("alpha", 2)
     v = ca.SX.sym("v", 2)
-    zdot, _ = closed_loop_field(z, alpha, K, g0)
-
-    derivs = [z[0:2] + K * ca.vertcat(ca.cos(z[2]), ca.sin(z[2]))]
-    for _ in range(4):
-        derivs.append(ca.jtimes(derivs[-1], z, zdot))
+    _, _, derivs = cp_derivatives(z, alpha, K, g0)
     lower = ca.horzcat(*derivs[:4])
     # Derivatives 1..3 are independent of alpha (checked by the tests): evaluate at alpha = 0.
     lower0 = ca.substitute(lower, alpha, ca.DM.zeros(2))
