@@ -6,8 +6,11 @@ swing-up, minimum torque, gamma_min = 2 m/s^2, no torque-continuity constraint) 
 * ``flat``: the CP-flat optimizer (B-spline coefficients as in the file),
 * ``collocation``: direct collocation without the regularity constraint,
 * ``collocation_gamma``: direct collocation with ``sign(gamma) gamma >= gamma_min`` at knots,
+* ``fatrop_gamma``: the same constraint, rockit's multiple shooting solved by Fatrop (at the
+  middle size only),
 
-each ``--repeats`` times (the first call builds, later calls reuse the solver), and prints
+each ``--repeats`` times from the same cold initial guess (the first call builds, later calls
+reuse the solver; a failed solve is not repeated), and prints
 
 * one table row per method and size: build time, solve time (median, min, max), Ipopt
   iterations, the torque integral on a fine grid, min |gamma| (certified over the whole plan
@@ -18,7 +21,13 @@ each ``--repeats`` times (the first call builds, later calls reuse the solver), 
 * one line per problem, exactly (one line, split here)
   ``RATIO <problem> solve_time_collocation_gamma_N100/flat=<x>
   cost_flat/collocation_gamma_N200=<y>``
-  (``--quick`` runs small sizes and names them in the line instead of N100 and N200).
+  (``--quick`` runs small sizes and names them in the line instead of N100 and N200);
+* one more line per problem, exactly (one line, split here)
+  ``SPEED <problem> flat_solve=<s> flat_cold=<s> collocation_gamma_N100_solve=<s>
+  fatrop_gamma_N100_solve=<s>``: median solve times, and ``flat_cold`` the wall time of the
+  first flat solve in the run, building included, with the compiled sample library cached
+  (the first call of the run loads it; a cold cache would add its compilation once);
+* the median process CPU time of each row's solves (the machine may be shared).
 
 Usage::
 
@@ -32,6 +41,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -55,6 +65,8 @@ class Row:
     min_gamma: float
     replay_error: float
     status: str
+    cold: float = 0.0
+    cpu: float = 0.0
 
     @property
     def median(self) -> float:
@@ -63,6 +75,8 @@ class Row:
 
 
 def _load(name: str, quick: bool, coefficients: int | None = None):
+    """A benchmark problem; with ``coefficients``, as many samples per B-spline piece as the
+    file has (``optimizer.samples`` counts samples per phase)."""
     from cpopt.problem import load_problem, parse_problem
 
     problem = load_problem(ROOT / "problems" / f"{name}.yaml")
@@ -70,11 +84,28 @@ def _load(name: str, quick: bool, coefficients: int | None = None):
         data = problem.spec.model_dump()
         opt = data["optimizer"]
         if quick:
-            opt.update(coefficients=14, samples=61)
+            opt.update(coefficients=14, samples=50)
         if coefficients:
+            pieces = opt["coefficients"] - opt["degree"]
+            per_piece = opt["samples"] / (pieces + 4)
             opt["coefficients"] = coefficients
+            opt["samples"] = round(per_piece * (coefficients - opt["degree"] + 4))
         problem = parse_problem(data, problem.source, problem.name)
     return problem
+
+
+def _timed(solve, repeats: int) -> tuple[list, float, float]:
+    """Call ``solve()`` up to ``repeats`` times (not again after a failure): the results, the
+    wall time of the first call and the median process CPU time of the calls [s]."""
+    results, walls, cpus = [], [], []
+    for _ in range(repeats):
+        wall, cpu = time.perf_counter(), time.process_time()
+        results.append(solve())
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+        if results[-1].status != "solved":
+            break
+    return results, walls[0], statistics.median(cpus)
 
 
 def run_flat(problem, repeats: int, label: str) -> Row:
@@ -83,7 +114,7 @@ def run_flat(problem, repeats: int, label: str) -> Row:
     from cpopt.simulate import simulate_open_loop
     from cpopt.trajectory import metrics, sample
 
-    results = [optimize(problem) for _ in range(repeats)]
+    results, cold, cpu = _timed(lambda: optimize(problem), repeats)
     first, last = results[0], results[-1]
     plan = last.plan
     cost = metrics(plan, sample(plan, FINE)).torque_sq_integral
@@ -98,20 +129,32 @@ def run_flat(problem, repeats: int, label: str) -> Row:
         plan.min_abs_gamma()[0],
         simulate_open_loop(plan).final_state_error,
         last.status,
+        cold,
+        cpu,
     )
+
+
+def with_fatrop(problem):
+    """The problem with ``collocation.solver: fatrop`` (multiple shooting)."""
+    from cpopt.problem import parse_problem
+
+    data = problem.spec.model_dump()
+    data["collocation"].update(solver="fatrop", method="multiple_shooting")
+    return parse_problem(data, problem.source, problem.name)
 
 
 def run_collocation(problem, intervals: int, gamma: bool, repeats: int) -> Row:
     """Solve by collocation ``repeats`` times (the first call transcribes and builds)."""
     from cpopt.collocation import collocate, joint_metrics, joint_trajectory, replay
 
-    results = [collocate(problem, intervals, gamma) for _ in range(repeats)]
+    results, cold, cpu = _timed(lambda: collocate(problem, intervals, gamma), repeats)
     first, last = results[0], results[-1]
     plan = last.plan
     measured = joint_metrics(plan, joint_trajectory(plan))
+    fatrop = problem.spec.collocation.solver == "fatrop"
     return Row(
         problem.name,
-        "collocation_gamma" if gamma else "collocation",
+        ("fatrop" if fatrop else "collocation") + ("_gamma" if gamma else ""),
         f"N={intervals}",
         first.solver.build_time_s,
         [r.solver.solve_time_s for r in results],
@@ -120,6 +163,8 @@ def run_collocation(problem, intervals: int, gamma: bool, repeats: int) -> Row:
         measured.min_abs_gamma,
         replay(plan, problem.nodes[-1]).final_state_error,
         last.status,
+        cold,
+        cpu,
     )
 
 
@@ -151,6 +196,18 @@ def ratio_line(name: str, rows: list[Row], mid: int, large: int) -> str:
     )
 
 
+def speed_line(name: str, rows: list[Row], mid: int) -> str:
+    """The SPEED line of one problem."""
+    flat = next(r for r in rows if r.method == "flat")
+    by = {(r.method, r.size): r for r in rows}
+    colloc = by[("collocation_gamma", f"N={mid}")].median
+    fatrop = by[("fatrop_gamma", f"N={mid}")].median
+    return (
+        f"SPEED {name} flat_solve={flat.median:.4f} flat_cold={flat.cold:.4f} "
+        f"collocation_gamma_N{mid}_solve={colloc:.4f} fatrop_gamma_N{mid}_solve={fatrop:.4f}"
+    )
+
+
 def main(argv=None) -> int:
     """Run the benchmark and print its tables and RATIO lines."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -176,15 +233,18 @@ def main(argv=None) -> int:
             for n in sizes:
                 rows.append(run_collocation(problem, n, gamma, repeats))
                 print(format_row(rows[-1]), flush=True)
+        rows.append(run_collocation(with_fatrop(problem), mid, True, repeats))
+        print(format_row(rows[-1]), flush=True)
         for count in scaling_coefficients:
             scaled = _load(name, False, count)
-            scaling.append(run_flat(scaled, max(1, repeats // 2), f"{count} coef"))
+            label = f"{count} coef/{scaled.spec.optimizer.samples} smp"
+            scaling.append(run_flat(scaled, max(1, repeats // 2), label))
     if scaling:
         print("\nscaling: flat solve time [s] against B-spline coefficients per coordinate")
         for r in scaling:
             print(
-                f"  {r.problem:10s} {r.size:10s} {r.median:8.3f}  iter {r.iterations:4d}"
-                f"  cost {r.cost:10.1f}"
+                f"  {r.problem:10s} {r.size:16s} {r.median:8.3f}  iter {r.iterations:4d}"
+                f"  cost {r.cost:10.1f}  {r.status}"
             )
     print("scaling: collocation_gamma solve time [s] against N")
     for r in rows:
@@ -193,8 +253,13 @@ def main(argv=None) -> int:
                 f"  {r.problem:10s} {r.size:10s} {r.median:8.3f}  iter {r.iterations:4d}"
                 f"  cost {r.cost:10.1f}"
             )
+    print("process CPU time per solve [s] (median)")
+    for r in rows:
+        print(f"  {r.problem:10s} {r.method:18s} {r.size:16s} {r.cpu:8.3f}")
     for name in names:
         print(ratio_line(name, [r for r in rows if r.problem == name], mid, large))
+    for name in names:
+        print(speed_line(name, [r for r in rows if r.problem == name], mid))
     return 0
 
 

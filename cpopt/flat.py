@@ -45,6 +45,75 @@ def closed_loop_field(z, alpha, K, g0):
     return zdot, a
 
 
+def cp_derivatives(z, alpha, K, g0) -> tuple[ca.SX, ca.SX, list]:
+    """The CP and its derivatives 0..4 along the closed-loop field, for symbols z and alpha.
+
+    Returns
+    -------
+    zdot, a : casadi.SX
+        The state derivative (8) and the base acceleration (2).
+    derivs : list of casadi.SX
+        The CP's derivatives 0..4 (each 2,).
+    """
+    zdot, a = closed_loop_field(z, alpha, K, g0)
+    derivs = [z[0:2] + K * ca.vertcat(ca.cos(z[2]), ca.sin(z[2]))]
+    for _ in range(4):
+        derivs.append(ca.jtimes(derivs[-1], z, zdot))
+    return zdot, a, derivs
+
+
+def compensator_expressions(z, v, K, g0):
+    """The dynamic compensator (5)-(8) for a desired CP fourth derivative, as expressions.
+
+    Parameters
+    ----------
+    z, v : casadi.SX
+        State (8) and desired fourth CP derivative (2): symbols or expressions.
+    K, g0 : float or casadi.SX
+        CP distance [m] and gravity [m/s^2] (numbers, or symbols of a parametric arm).
+
+    Returns
+    -------
+    alpha, zdot, a : casadi.SX
+        Compensator inputs (2), state derivative (8) and base acceleration (2).
+    """
+    zs = ca.SX.sym("z", 8)
+    alpha = ca.SX.sym("alpha", 2)
+    zdot, a, derivs = cp_derivatives(zs, alpha, K, g0)
+    fourth = derivs[4]
+    # the fourth derivative is affine in alpha: A and b at alpha = 0 (cancelling terms vanish)
+    A = ca.substitute(ca.jacobian(fourth, alpha), alpha, ca.DM.zeros(2))
+    b = ca.substitute(fourth, alpha, ca.DM.zeros(2))
+    alpha_v = ca.solve(A, v - b)
+    out = [alpha_v, ca.substitute(zdot, alpha, alpha_v), ca.substitute(a, alpha, alpha_v)]
+    return tuple(ca.substitute(e, zs, z) for e in out)
+
+
+def inverse_expressions(P, sigma, K, g0):
+    """The inverse flat map as an expression: the state z (8) from the CP derivatives 0..3.
+
+    Parameters
+    ----------
+    P : casadi.SX
+        CP and its derivatives 0..3 [m/s^k] (2 x 4, or more columns: the first four are used).
+    sigma : casadi.SX or float
+        Sign of gamma.
+    K, g0 : float or casadi.SX
+        CP distance [m] and gravity [m/s^2] (numbers, or symbols of a parametric arm).
+    """
+    acc = P[:, 2] + ca.vertcat(0, g0)
+    theta = ca.atan2(sigma * acc[1], sigma * acc[0])
+    gam = sigma * ca.norm_2(acc)
+    c, s = ca.cos(theta), ca.sin(theta)
+    jerk_link = rotation(theta).T @ P[:, 3]  # (gamma_dot, gamma * thetadot)
+    thetadot = jerk_link[1] / gam
+    xi = gam + K * thetadot**2 - g0 * s
+    eta = jerk_link[0] - 3 * g0 * c * thetadot
+    pos = P[:, 0] - K * ca.vertcat(c, s)
+    vel = P[:, 1] - K * thetadot * ca.vertcat(-s, c)
+    return ca.vertcat(pos, theta, vel, thetadot, xi, eta)
+
+
 @lru_cache(maxsize=16)
 def flat_functions(K: float, g0: float) -> dict[str, ca.Function]:
     """CasADi functions of the flat maps for a CP distance K [m] and gravity g0 [m/s^2].
@@ -62,44 +131,22 @@ def flat_functions(K: float, g0: float) -> dict[str, ca.Function]:
     z = ca.SX.sym("z", 8)
     alpha = ca.SX.sym("alpha", 2)
     v = ca.SX.sym("v", 2)
-    zdot, a = closed_loop_field(z, alpha, K, g0)
-
-    derivs = [z[0:2] + K * ca.vertcat(ca.cos(z[2]), ca.sin(z[2]))]
-    for _ in range(4):
-        derivs.append(ca.jtimes(derivs[-1], z, zdot))
+    _, _, derivs = cp_derivatives(z, alpha, K, g0)
     lower = ca.horzcat(*derivs[:4])
     # Derivatives 1..3 are independent of alpha (checked by the tests): evaluate at alpha = 0.
     lower0 = ca.substitute(lower, alpha, ca.DM.zeros(2))
-    fourth = derivs[4]
-    # p'''' is affine in alpha: A and b are evaluated at alpha = 0 (terms that cancel vanish).
-    A = ca.substitute(ca.jacobian(fourth, alpha), alpha, ca.DM.zeros(2))
-    b = ca.substitute(fourth, alpha, ca.DM.zeros(2))
-    alpha_v = ca.solve(A, v - b)
-    zdot_v = ca.substitute(zdot, alpha, alpha_v)
-    a_v = ca.substitute(a, alpha, alpha_v)
     gamma = z[6] - K * z[5] ** 2 + g0 * ca.sin(z[2])
-
     P = ca.SX.sym("P", 2, 4)
     sigma = ca.SX.sym("sigma")
-    acc = P[:, 2] + ca.vertcat(0, g0)
-    theta = ca.atan2(sigma * acc[1], sigma * acc[0])
-    gam = sigma * ca.norm_2(acc)
-    c, s = ca.cos(theta), ca.sin(theta)
-    jerk_link = rotation(theta).T @ P[:, 3]  # (gamma_dot, gamma * thetadot)
-    thetadot = jerk_link[1] / gam
-    xi = gam + K * thetadot**2 - g0 * s
-    eta = jerk_link[0] - 3 * g0 * c * thetadot
-    pos = P[:, 0] - K * ca.vertcat(c, s)
-    vel = P[:, 1] - K * thetadot * ca.vertcat(-s, c)
-    z_inv = ca.vertcat(pos, theta, vel, thetadot, xi, eta)
+    compensator = compensator_expressions(z, v, K, g0)
 
     return {
         "output": ca.Function("output", [z], [lower0]),
         "lie_alpha": ca.Function("lie_alpha", [z, alpha], [ca.jacobian(ca.vec(lower), alpha)]),
-        "fourth": ca.Function("fourth", [z, alpha], [fourth]),
-        "compensator": ca.Function("compensator", [z, v], [alpha_v, zdot_v, a_v]),
+        "fourth": ca.Function("fourth", [z, alpha], [derivs[4]]),
+        "compensator": ca.Function("compensator", [z, v], list(compensator)),
         "gamma": ca.Function("gamma", [z], [gamma]),
-        "inverse": ca.Function("inverse", [P, sigma], [z_inv]),
+        "inverse": ca.Function("inverse", [P, sigma], [inverse_expressions(P, sigma, K, g0)]),
     }
 
 

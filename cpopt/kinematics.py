@@ -49,12 +49,13 @@ def link_geometry(arm: Arm, q: ca.SX) -> LinkGeometry:
     Parameters
     ----------
     arm : Arm
-        The arm.
+        The arm, or an object with its fields whose values are CasADi symbols (a parametric
+        arm, :class:`cpopt.flatopt.samples.ParametricArm`).
     q : casadi.SX
         Joint coordinates (3 x 1): radians for revolute, metres for prismatic joints.
     """
     l1, l2, l3 = arm.links
-    b = ca.DM(arm.base)
+    b = ca.vertcat(*arm.base)  # numbers, or symbols of a parametric arm
     q1, q2, q3 = q[0], q[1], q[2]
     ex, ey = ca.DM([1, 0]), ca.DM([0, 1])
     if arm.kind == "RRR":
@@ -176,7 +177,7 @@ def inverse_position(
                 np.abs(c2) > 1 - tol,
                 f"out of reach or singular (distance from base must lie in ({lo:.4g}, {hi:.4g}) m)",
             )
-        s2 = np.sqrt(1 - c2**2) * (-1.0 if arm.branch == "elbow_up" else 1.0)
+        s2 = np.sqrt(1 - c2**2) * arm.branch_sign
         q2 = np.arctan2(s2, c2)
         q1 = np.arctan2(y, x) - np.arctan2(l2 * s2, l1 + l2 * c2)
         q1 = np.unwrap(q1)
@@ -195,7 +196,7 @@ def inverse_position(
                 np.abs(s2) > 1 - tol,
                 f"out of reach or singular (|y - base_y| must be < {l2:.4g} m)",
             )
-        c2 = np.sqrt(1 - s2**2) * (1.0 if arm.branch == "forward" else -1.0)
+        c2 = np.sqrt(1 - s2**2) * arm.branch_sign
         q2 = np.unwrap(np.arctan2(s2, c2))
         q1 = x - l2 * c2
         q3 = theta - q2
@@ -251,13 +252,14 @@ def inverse_position_symbolic(arm: Arm, x, y, theta):
 
     Angles come out of atan2 (wrapped); the dynamics depend on them only through sines and
     cosines, so wrapping does not matter for torques. Valid inside the reach
-    (see :func:`reach_margin`).
+    (see :func:`reach_margin`). The arm may be parametric (its values CasADi symbols, the
+    branch given by ``arm.branch_sign``).
     """
     px, py = x - arm.base[0], y - arm.base[1]
     l1, l2 = arm.links[0].length, arm.links[1].length
     if arm.kind == "RRR":
         c2 = (px**2 + py**2 - l1**2 - l2**2) / (2 * l1 * l2)
-        s2 = ca.sqrt(1 - c2**2) * (-1.0 if arm.branch == "elbow_up" else 1.0)
+        s2 = ca.sqrt(1 - c2**2) * arm.branch_sign
         q2 = ca.atan2(s2, c2)
         q1 = ca.atan2(py, px) - ca.atan2(l2 * s2, l1 + l2 * c2)
         return ca.vertcat(q1, q2, theta - q1 - q2)
@@ -266,7 +268,7 @@ def inverse_position_symbolic(arm: Arm, x, y, theta):
         return ca.vertcat(q1, ca.sqrt(px**2 + py**2), theta - q1)
     if arm.kind == "PRR":
         s2 = py / l2
-        c2 = ca.sqrt(1 - s2**2) * (1.0 if arm.branch == "forward" else -1.0)
+        c2 = ca.sqrt(1 - s2**2) * arm.branch_sign
         q2 = ca.atan2(s2, c2)
         return ca.vertcat(px - l2 * c2, q2, theta - q2)
     return ca.vertcat(px, py, theta)

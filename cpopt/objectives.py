@@ -22,6 +22,8 @@ MEANING = {
 
 LEAST_SQUARES = frozenset({"torque", "v_squared"})
 """Terms that are integrals of squares (a Gauss-Newton Hessian applies to them)."""
+LINEAR = frozenset({"duration", "gamma_margin"})
+"""Terms linear in the decision variables (no curvature of their own)."""
 
 COLLOCATION_OBJECTIVES = ("torque", "duration", "gamma_margin")
 """Terms the collocation peer transcribes; v is the CP's fourth derivative, which collocation
@@ -34,6 +36,15 @@ def weights(objective: str | Mapping[str, float]) -> dict[str, float]:
     if isinstance(objective, str):
         return {objective: 1.0}
     return {name: float(w) for name, w in objective.items() if w}
+
+
+def default_hessian(objective: str | Mapping[str, float]) -> str:
+    """The flat optimizer's Hessian for an objective when the file does not choose one, by
+    measurement (docs/problems.md, ``optimizer.solver.hessian``): ``gauss_newton`` when
+    ``torque`` and ``energy`` are absent (v_squared is linear in the coefficients, so its
+    Gauss-Newton curvature is exact), ``exact`` otherwise (with the gravity torques the
+    torque objective is a large-residual least-squares problem: Gauss-Newton stalls)."""
+    return "exact" if {"torque", "energy"} & set(weights(objective)) else "gauss_newton"
 
 
 def squared_norm(rows):
@@ -50,9 +61,11 @@ def abs_power(tau, qdot):
 __all__ = [
     "COLLOCATION_OBJECTIVES",
     "LEAST_SQUARES",
+    "LINEAR",
     "MEANING",
     "OBJECTIVES",
     "abs_power",
+    "default_hessian",
     "squared_norm",
     "weights",
 ]

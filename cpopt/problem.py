@@ -33,7 +33,7 @@ from .dynamics import holding_torque
 from .kinematics import ReachError, inverse_derivatives, inverse_position
 from .limits import Limit, arm_limits
 from .nodes import free_value_names, freed_fields, gamma_is_free, node_names, node_values, si_bounds
-from .objectives import COLLOCATION_OBJECTIVES, OBJECTIVES, weights
+from .objectives import COLLOCATION_OBJECTIVES, LEAST_SQUARES, LINEAR, OBJECTIVES, weights
 from .paths import PathShape, node_mismatch, order_fields
 from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, G0, Arm, Link
@@ -147,13 +147,14 @@ DEFAULT_MAX_TIME = 300.0
 
 
 class SolverSpec(_Spec):
-    """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]."""
+    """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]; ``hessian`` None
+    means the objective's default (:func:`cpopt.objectives.default_hessian`)."""
 
     max_iter: Annotated[int, WHOLE, Field(gt=0)] = 1000
     tol: Positive = 1e-8
     print_level: Annotated[int, WHOLE, Field(ge=0, le=12)] = 0
-    jit: bool = False
     mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
+    hessian: Literal["exact", "gauss_newton"] | None = None
     max_time: Positive = DEFAULT_MAX_TIME
 
 
@@ -208,7 +209,7 @@ class OptimizerSpec(_Spec):
     gamma_min: Number = 2.0
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     smooth_torque: bool = True
-    samples: Annotated[int, WHOLE, Field(ge=10, le=1000)] = 40
+    samples: Annotated[int, WHOLE, Field(ge=10, le=1000)] = 50
     limits: LimitsSpec = LimitsSpec()
     free: dict[str, Pair(Number | None)] = {}
     solver: SolverSpec = SolverSpec()
@@ -234,6 +235,7 @@ class CollocationSpec(_Spec):
     degree: Annotated[int, WHOLE, Field(ge=1, le=9)] = 3
     steps: Annotated[int, WHOLE, Field(ge=1, le=20)] = 1
     gamma_constraint: bool = True
+    solver: Literal["ipopt", "fatrop"] = "ipopt"
     warm_start: Literal["none", "flat"] = "none"
     replay_tolerance: Positive = 1e-3
 
@@ -402,6 +404,25 @@ def _model_in(annotation) -> type[BaseModel] | None:
         if found is not None:
             return found
     return None
+
+
+REMOVED_KEYS = {
+    ("optimizer", "solver", "jit"): (
+        "this key was removed: the optimizer's per-sample functions are now always compiled to "
+        "C once per arm kind and cached in the user's cache folder (no setting needed; see "
+        "'Compiled samples' in docs/problems.md); delete the key"
+    ),
+}
+"""Keys that older files may have, with what replaced them."""
+
+
+def _check_removed_keys(data: dict, source: str) -> None:
+    for path, why in REMOVED_KEYS.items():
+        node = data
+        for key in path[:-1]:
+            node = node.get(key) if isinstance(node, dict) else None
+        if isinstance(node, dict) and path[-1] in node:
+            raise ProblemError(source, ".".join(path), why)
 
 
 def _allowed_keys(loc) -> list[str]:
@@ -724,6 +745,14 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
         )
+    not_squares = sorted(set(weights(o.objective)) - LEAST_SQUARES - LINEAR)
+    if o.solver.hessian == "gauss_newton" and not_squares:
+        raise ProblemError(
+            source,
+            "optimizer.solver.hessian",
+            f"gauss_newton needs a least-squares objective ({', '.join(sorted(LEAST_SQUARES))}, "
+            f"plus {', '.join(sorted(LINEAR))}); {', '.join(not_squares)} is not one: use exact",
+        )
 
 
 def _check_paths(spec: ProblemSpec, arm: Arm, nodes, free: dict, source: str) -> None:
@@ -843,6 +872,28 @@ def _check_collocation(spec: ProblemSpec, source: str) -> None:
         raise ProblemError(
             source, "optimizer.objective", "a duration objective needs 'duration' in optimizer.free"
         )
+    if spec.collocation.solver == "fatrop":
+        _check_fatrop(spec, source)
+
+
+def _check_fatrop(spec: ProblemSpec, source: str) -> None:
+    """Fatrop needs the single-stage, fixed-time structure it detects (see docs/problems.md)."""
+    why = None
+    if spec.motion.via:
+        why = (
+            f"fatrop solves single-phase problems only (this one has {len(spec.motion.via) + 1} "
+            "phases: rockit's multi-stage transcription defeats Fatrop's structure detection)"
+        )
+    elif spec.collocation.method != "multiple_shooting":
+        why = "fatrop needs collocation.method: multiple_shooting (rockit's direct collocation "
+        why += "does not give Fatrop its stage structure)"
+    elif {"duration"} & set(spec.optimizer.free) or "gamma_margin" in weights(
+        spec.optimizer.objective
+    ):
+        why = "fatrop needs a fixed duration and no gamma_margin objective (a free time or a "
+        why += "margin variable is shared by all stages, which Fatrop's structure cannot hold)"
+    if why:
+        raise ProblemError(source, "collocation.solver", why + "; use solver: ipopt")
 
 
 def plant_links(spec: ProblemSpec) -> list[Link]:
@@ -966,6 +1017,7 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
     if not isinstance(data, dict):
         kind = "an empty document" if data is None else f"a {type(data).__name__}"
         raise ProblemError(source, "", f"expected a mapping with keys arm, motion, ...; got {kind}")
+    _check_removed_keys(data, source)
     try:
         spec = ProblemSpec.model_validate(data)
     except ValidationError as err:

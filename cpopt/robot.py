@@ -132,6 +132,12 @@ class Arm:
             )
 
     @property
+    def branch_sign(self) -> float:
+        """The branch as a sign: RRR ``elbow_down`` and PRR ``forward`` +1, RRR ``elbow_up`` and
+        PRR ``backward`` -1 (the sign of sin q2, resp. cos q2); +1 for RPR and PPR."""
+        return -1.0 if self.branch in ("elbow_up", "backward") else 1.0
+
+    @property
     def revolute(self) -> tuple[bool, bool, bool]:
         """Which joints are revolute (angles in rad, limits in deg in files); the third always."""
         return (self.kind[0] == "R", self.kind[1] == "R", True)

@@ -46,6 +46,25 @@ def ipopt_options(settings, mu_strategy: bool = True) -> dict:
     return options
 
 
+FATROP_MU_INIT = 1e-2
+"""Fatrop's initial barrier parameter: its default 0.1 stalls on the benchmark transfer."""
+
+
+def fatrop_options(settings) -> dict:
+    """nlpsol options for Fatrop from an ``optimizer.solver`` block (a ``SolverSpec``):
+    expanded SX functions and the optimal-control structure detected from the constraints."""
+    return {
+        "expand": True,
+        "structure_detection": "auto",
+        "print_time": False,
+        "record_time": True,
+        "fatrop.print_level": settings.print_level,
+        "fatrop.max_iter": settings.max_iter,
+        "fatrop.tol": settings.tol,
+        "fatrop.mu_init": FATROP_MU_INIT,
+    }
+
+
 class PlannerDetails(Protocol):
     """What a planner reports beyond the common statistics (typed per planner)."""
 
@@ -128,9 +147,18 @@ class NlpRun:
 
 
 def read_stats(stats: Mapping) -> tuple[str, str, int]:
-    """(Ipopt's return status, cpopt's status, iterations) from a CasADi stats dict."""
-    ipopt = str(stats.get("return_status", "unknown"))
-    return ipopt, status_of(ipopt), int(stats.get("iter_count", 0))
+    """(the solver's return status, cpopt's status, iterations) from a CasADi stats dict.
+
+    Ipopt names its status; Fatrop returns a number (0 on success) and a ``success`` flag, and
+    its failures map to ``max_iterations`` when the iteration limit was reached, else
+    ``not_converged``.
+    """
+    status = stats.get("return_status", "unknown")
+    iterations = int(stats.get("iter_count", 0))
+    if isinstance(status, str):
+        return status, status_of(status), iterations
+    word = "solved" if stats.get("success") else "not_converged"
+    return f"return status {status}", word, iterations
 
 
 def run_nlp(solver: ca.Function, **arguments) -> NlpRun:
@@ -154,6 +182,7 @@ __all__ = [
     "NlpRun",
     "PlannerDetails",
     "SolverStats",
+    "fatrop_options",
     "ipopt_options",
     "read_stats",
     "run_nlp",

@@ -83,3 +83,39 @@ def test_collocation_refuses_flat_only_objectives():
     data["optimizer"]["objective"] = "v_squared"
     with pytest.raises(ProblemError, match=r"optimizer\.objective"):
         parse_problem(data, "x.yaml")
+
+
+def _fatrop(**collocation):
+    data = load_problem(TRANSFER).spec.model_dump()
+    data["planner"] = "collocation"
+    data["collocation"].update({"solver": "fatrop", "method": "multiple_shooting", **collocation})
+    return data
+
+
+def test_fatrop_solves_the_single_phase_transfer():
+    problem = parse_problem(_fatrop(), "transfer", "transfer")
+    result = collocate(problem, intervals=20, gamma_constraint=True)
+    assert result.status == "solved", result.solver.message
+    assert result.solver.message.startswith("Fatrop:")
+    assert result.solver.details.solver == "fatrop"
+    plan = result.plan
+    step = joint_functions(problem.arm)
+    gam = [float(step(plan.q[k], plan.qd[k], plan.tau[k])[1]) for k in range(20)]
+    assert min(gam) >= 2.0 - 1e-6  # at every knot where a control acts
+    # one RK4 step per interval on 20 intervals: the replay ends 1.3e-2 from the goal, the
+    # cost is near the N = 200 optimum (66183)
+    assert replay(plan, problem.nodes[-1]).final_state_error < 2e-2
+    assert plan.torque_sq_integral() == pytest.approx(66183, rel=0.05)
+
+
+def test_fatrop_is_refused_where_its_structure_detection_fails():
+    via = _fatrop()
+    via["motion"]["via"] = [{"t": 0.5, "x": 1.25, "y": 1.0, "theta_deg": 90, "xi": 5.0}]
+    with pytest.raises(ProblemError, match=r"collocation\.solver: fatrop solves single-phase"):
+        parse_problem(via, "x.yaml")
+    with pytest.raises(ProblemError, match=r"collocation\.solver: .*multiple_shooting"):
+        parse_problem(_fatrop(method="collocation"), "x.yaml")
+    free_time = _fatrop()
+    free_time["optimizer"]["free"]["duration"] = [0.5, 2.0]
+    with pytest.raises(ProblemError, match=r"collocation\.solver: .*fixed duration"):
+        parse_problem(free_time, "x.yaml")

@@ -77,6 +77,14 @@ def _commands():
                 yield part
 
 
+def _check_lines(stdout: str, word: str, pattern: str) -> None:
+    """One line starting with ``word`` per benchmark problem, each matching ``pattern``."""
+    lines = [line for line in stdout.splitlines() if line.startswith(word + " ")]
+    assert [line.split()[1] for line in lines] == ["transfer", "swing_up"]
+    for line in lines:
+        assert re.fullmatch(pattern, line), line
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("command", list(_commands()))
 def test_readme_commands_run(command, tmp_path):
@@ -93,14 +101,18 @@ def test_readme_commands_run(command, tmp_path):
     done = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-2000:]
     if "vs_collocation.py" in command:
-        ratios = [line for line in done.stdout.splitlines() if line.startswith("RATIO ")]
-        assert [r.split()[1] for r in ratios] == ["transfer", "swing_up"]
-        for line in ratios:
-            assert re.fullmatch(
-                r"RATIO \w+ solve_time_collocation_gamma_N10/flat=[0-9.]+ "
-                r"cost_flat/collocation_gamma_N20=[0-9.]+",
-                line,
-            )
+        _check_lines(
+            done.stdout,
+            "RATIO",
+            r"RATIO \w+ solve_time_collocation_gamma_N10/flat=[0-9.]+ "
+            r"cost_flat/collocation_gamma_N20=[0-9.]+",
+        )
+        _check_lines(
+            done.stdout,
+            "SPEED",
+            r"SPEED \w+ flat_solve=[0-9.]+ flat_cold=[0-9.]+ "
+            r"collocation_gamma_N10_solve=[0-9.]+ fatrop_gamma_N10_solve=[0-9.]+",
+        )
     if "path_timing.py" in command:
         wander = [line for line in done.stdout.splitlines() if line.startswith("WANDER ")]
         assert [w.split()[1] for w in wander] == ["transfer", "swing_up"]

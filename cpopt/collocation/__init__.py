@@ -3,7 +3,9 @@
 This is what a user would otherwise write: joint positions and velocities as states, the two
 actuated torques as piecewise-constant controls, the passive joint torque-free through the
 forward dynamics ``qdd = B^-1 ([tau; 0] - n)``, transcribed by rockit (direct collocation or
-multiple shooting) and solved by Ipopt. The problem is the flat optimizer's: same nodes,
+multiple shooting) and solved by Ipopt or Fatrop (``collocation.solver``; Fatrop, the
+structure-exploiting interior-point solver shipped with CasADi, takes single-phase problems
+with fixed times in multiple shooting). The problem is the flat optimizer's: same nodes,
 objective, limits and duration, read from the same ``optimizer`` block, plus the settings of
 the ``collocation`` block. With ``gamma_constraint`` the regularity quantity
 
@@ -43,6 +45,7 @@ class CollocationDetails:
 
     intervals: int
     method: str
+    solver: str
     gamma_constraint: bool
     gamma_sign: int | None
     variables: int | None
@@ -52,6 +55,7 @@ class CollocationDetails:
         return {
             "intervals": self.intervals,
             "method": self.method,
+            "solver": self.solver,
             "gamma_constraint": self.gamma_constraint,
             "gamma_sign": self.gamma_sign,
             "variables": self.variables,
@@ -90,30 +94,34 @@ def collocate(
     Returns
     -------
     CollocationResult
-        Ipopt's status (``solved``, ``infeasible``, ``max_iterations``, ``not_converged``)
-        and the plan, Ipopt's best iterate when it failed.
+        The solver's status (``solved``, ``infeasible``, ``max_iterations``,
+        ``not_converged``) and the plan, its best iterate when it failed.
     """
     col = problem.spec.collocation
     intervals = intervals or col.intervals
     gamma_constraint = col.gamma_constraint if gamma_constraint is None else gamma_constraint
     tic = time.perf_counter()
     ocp, stages, sign = transcription(problem, intervals, gamma_constraint, warm_start)
-    sol = ocp.solve_limited()
+    try:
+        sol = ocp.solve_limited()
+    except RuntimeError:  # a failure that is not a limit (Fatrop's return status 1, ...)
+        sol = ocp.non_converged_solution
     total = time.perf_counter() - tic
-    ipopt, status, iterations = read_stats(sol.stats)
-    solve_time = float(sol.stats.get("t_wall_total", total))  # Ipopt alone (record_time)
+    said, status, iterations = read_stats(sol.stats)
+    solve_time = float(sol.stats.get("t_wall_total", total))  # the solver alone (record_time)
     plan = extract(problem, sol, stages, sign if gamma_constraint else 0)
     count = sum(s.intervals for s in stages)
     stats = SolverStats(
         iterations=iterations,
         build_time_s=total - solve_time,
         solve_time_s=solve_time,
-        message=f"Ipopt: {ipopt} (collocation, {col.method}, {count} intervals, "
-        f"gamma constraint {'on' if gamma_constraint else 'off'})",
+        message=f"{col.solver.capitalize()}: {said} (collocation, {col.method}, {count} "
+        f"intervals, gamma constraint {'on' if gamma_constraint else 'off'})",
         objective=float(sol.value(ocp.objective)),
         details=CollocationDetails(
             intervals=count,
             method=col.method,
+            solver=col.solver,
             gamma_constraint=gamma_constraint,
             gamma_sign=sign if gamma_constraint else None,
             variables=int(sol.stats["n_x"]) if "n_x" in sol.stats else None,

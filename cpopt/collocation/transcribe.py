@@ -17,7 +17,7 @@ from ..objectives import squared_norm, weights
 from ..plan import Node
 from ..problem import Problem
 from ..simulate import pose_states
-from ..solver import ipopt_options
+from ..solver import fatrop_options, ipopt_options
 from ..trajectory import sample
 from .joint_plan import REFINE, JointPlan, joint_functions
 
@@ -120,7 +120,9 @@ def _new_stage(ocp, problem: Problem, k: int, intervals: int, free_times: bool) 
     times = [n.t for n in problem.nodes]
     h = times[k + 1] - times[k]
     n_k = max(2, round(intervals * h / times[-1]))
-    if free_times:
+    if col.solver == "fatrop":
+        stage = ocp  # Fatrop's structure detection needs one stage: the Ocp itself
+    elif free_times:
         stage = ocp.stage(t0=FreeTime(times[k]), T=FreeTime(h))
     else:
         stage = ocp.stage(t0=times[k], T=h)
@@ -138,10 +140,12 @@ def _new_stage(ocp, problem: Problem, k: int, intervals: int, free_times: bool) 
 def _path_constraints(problem: Problem, st: Stage, gamma_constraint: bool, sign: int, margin):
     """Along the stage: the sign of gamma (and the margin variable), limits, phase length."""
     gamma = joint_functions(problem.arm)(st.q, st.qd, st.tau)[1]
+    # gamma depends on the control, which Fatrop's last node does not have
+    where = {"include_last": False} if problem.spec.collocation.solver == "fatrop" else {}
     if gamma_constraint:
-        st.stage.subject_to(sign * gamma >= problem.spec.optimizer.gamma_min)
+        st.stage.subject_to(sign * gamma >= problem.spec.optimizer.gamma_min, **where)
     if margin is not None:
-        st.stage.subject_to(sign * gamma >= margin)
+        st.stage.subject_to(sign * gamma >= margin, **where)
     _limits(problem, st)
 
 
@@ -181,7 +185,8 @@ def build(problem: Problem, intervals: int, gamma_constraint: bool, sign: int, g
 
     times = [n.t for n in problem.nodes]
     free_times = any(name in problem.free for name in _time_names(problem))
-    ocp = Ocp()
+    fatrop = problem.spec.collocation.solver == "fatrop"
+    ocp = Ocp(T=times[-1]) if fatrop else Ocp()
     w = weights(problem.spec.optimizer.objective)
     margin = ocp.variable() if w.get("gamma_margin") else None
     objective = 0
@@ -200,10 +205,13 @@ def build(problem: Problem, intervals: int, gamma_constraint: bool, sign: int, g
         objective -= w["gamma_margin"] * margin
         ocp.set_initial(margin, problem.spec.optimizer.gamma_min)
     ocp.add_objective(objective)
-    options = {
-        f"ipopt.{k}": v for k, v in ipopt_options(problem.spec.optimizer.solver, False).items()
-    }
-    ocp.solver("ipopt", {"expand": True, "print_time": False, "record_time": True, **options})
+    if fatrop:
+        ocp.solver("fatrop", fatrop_options(problem.spec.optimizer.solver))
+    else:
+        options = {
+            f"ipopt.{k}": v for k, v in ipopt_options(problem.spec.optimizer.solver, False).items()
+        }
+        ocp.solver("ipopt", {"expand": True, "print_time": False, "record_time": True, **options})
     return ocp, stages
 
 

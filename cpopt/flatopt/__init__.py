@@ -27,8 +27,14 @@ from ..plan import CPPlan, Phase
 from ..problem import Problem
 from ..solver import SolverStats, run_nlp
 from .path_timing import chosen_points
-from .refine import CERTIFICATION, MAX_REFINEMENTS, between_samples, violations
-from .transcribe import FlatNLP, build, phase_pieces
+from .refine import (
+    CERTIFICATION,
+    MAX_REFINEMENTS,
+    between_samples,
+    quadrature_gaps,
+    violations,
+)
+from .transcribe import FlatNLP, build, initial_grids, phase_pieces
 from .warm_start import initial_guess
 
 
@@ -156,22 +162,14 @@ def _bounds(nlp: FlatNLP, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     return np.r_[lo, [-np.inf] * n_lifted], np.r_[hi, [np.inf] * n_lifted]
 
 
-def _added_samples(extra: tuple, dips: list[set]) -> tuple:
-    """The refinement's extra samples per phase with the new ones added."""
-    per = [set(e) for e in (extra or [() for _ in dips])]
-    for k, new in enumerate(dips):
-        per[k].update(new)
-    return tuple(tuple(sorted(e)) for e in per)
-
-
 def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
     """Solve for one sign of gamma, refining the sample grid until the margin is certified."""
-    extra, x0 = (), None
+    grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
     iterations = refinements = 0
     for _ in range(1 + MAX_REFINEMENTS):
         tic = time.perf_counter()
-        nlp = build(problem, sign, extra)
+        nlp = build(problem, sign, grids)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
@@ -184,9 +182,11 @@ def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
         if run.status != "solved":
             break
         dips = between_samples(problem, plan, times)
-        if not any(dips):
+        gaps = quadrature_gaps(problem, plan, nlp)
+        if not any(dips) and not any(gaps):
             break
-        extra, x0 = _added_samples(extra, dips), run.x
+        grids = tuple(g.refined(*new) for g, *new in zip(grids, gaps, dips, strict=True))
+        x0 = run.x
         refinements += 1
     # constraints of the plan the user gets: lifted samples recomputed from the core variables
     g = np.asarray(nlp.constraints(nlp.complete(run.x, p), p)).ravel()

@@ -2,18 +2,26 @@
 
 gamma is certified exactly on every polynomial piece of the CP curves (the end points and the
 real roots of the derivative of |p'' + g0 e_y|^2); torque and joint-velocity limits are checked
-on a fine grid. Where either fails, the optimizer adds samples there and solves again.
+on a fine grid. Where either fails, the optimizer adds samples there and solves again. The
+objective's quadrature is checked piece by piece against a fine integral of the plan; a piece
+where they differ by more than :data:`QUADRATURE_TOL` of the whole integral gets twice the
+quadrature points, and the optimizer solves again.
 """
 
 from __future__ import annotations
+
+from itertools import pairwise
 
 import numpy as np
 
 from ..kinematics import ReachError
 from ..limits import sampled
+from ..objectives import abs_power, squared_norm, weights
 from ..plan import CPPlan
 from ..problem import Problem
 from ..trajectory import sample
+from .quadrature import fine_rule
+from .samples import QD, TAU, sample_values
 from .transcribe import FlatNLP
 
 CERTIFICATION = (
@@ -23,7 +31,10 @@ CERTIFICATION = (
 LIMIT_CHECK_SAMPLES = 2001
 """Samples per phase on which limits are checked after a solve."""
 MAX_REFINEMENTS = 4
-"""Re-solves with samples added where gamma or a limit failed between samples."""
+"""Re-solves with samples added where gamma, a limit or the quadrature failed."""
+QUADRATURE_TOL = 1e-3
+"""Largest difference between a piece's quadrature and its fine integral, relative to the
+fine integral of the whole motion."""
 
 
 def gamma_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
@@ -67,6 +78,51 @@ def between_samples(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     merged = [a | b for a, b in zip(found, excursions, strict=True)]
     # a few points per stretch of violation are enough
     return [set(sorted(f)[:: max(1, len(f) // 8)]) for f in merged]
+
+
+def integrand(problem: Problem, P: np.ndarray, y: np.ndarray) -> np.ndarray | None:
+    """The weighted integrand of the objective's integral terms at samples (None if the
+    objective has none).
+
+    Parameters
+    ----------
+    P : numpy.ndarray
+        CP derivatives 0..4 (N, 2, 5).
+    y : numpy.ndarray
+        The samples' outputs (N, 9) (:data:`cpopt.flatopt.samples.OUTPUTS`).
+    """
+    w = weights(problem.spec.optimizer.objective)
+    terms = {
+        "torque": lambda: squared_norm(y[:, TAU].T),
+        "energy": lambda: abs_power(y[:, TAU].T, y[:, QD].T),
+        "v_squared": lambda: squared_norm(P[:, :, 4].T),
+    }
+    used = [w[k] * terms[k]() for k in terms if k in w]
+    return sum(used) if used else None
+
+
+def quadrature_gaps(problem: Problem, plan: CPPlan, nlp: FlatNLP) -> list[set[int]]:
+    """Per phase, the pieces whose quadrature differs from the fine integral of the plan by
+    more than :data:`QUADRATURE_TOL` of the whole fine integral."""
+    per_phase = []
+    total = 0.0
+    for ph, samples in zip(plan.phases, nlp.samples, strict=True):
+        curve, h = ph.curve, ph.curve.t1 - ph.curve.t0
+        pieces = int(samples.piece.max()) + 1
+        breaks = np.linspace(0.0, 1.0, pieces + 1)
+        fine = [fine_rule(a, b) for a, b in pairwise(breaks)]
+        s = np.concatenate([samples.s[: samples.quadrature], *(rule[0] for rule in fine)])
+        P = curve.derivatives(curve.t0 + s * h, 4)
+        f = integrand(problem, P, sample_values(plan.arm, P, ph.sigma))
+        if f is None:
+            return [set() for _ in plan.phases]
+        m = samples.quadrature
+        quad = np.bincount(samples.piece, weights=samples.weights * f[:m], minlength=pieces)
+        exact = (f[m:].reshape(pieces, -1) * np.stack([rule[1] for rule in fine])).sum(axis=1)
+        per_phase.append((h * quad, h * exact))
+        total += h * exact.sum()
+    tol = QUADRATURE_TOL * abs(total) + 1e-12
+    return [set(np.flatnonzero(np.abs(q - e) > tol).tolist()) for q, e in per_phase]
 
 
 def violations(nlp: FlatNLP, g: np.ndarray, times: list, tol: float = 1e-6) -> list[str]:

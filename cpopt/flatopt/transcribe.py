@@ -15,9 +15,11 @@ decision blocks and boundary conditions and yields the CP derivatives at any nor
 everything after that is common to the families.
 
 Lifting: the CP derivatives of each sample are decision variables tied to the coefficients by
-linear constraints, and every sample-wise quantity (torques, joint motion, reach) goes through
-one small CasADi function of them (:mod:`cpopt.flatopt.samples`), mapped over the samples. The
-Hessian of the Lagrangian is then block diagonal (10 x 10 per sample).
+linear constraints, and every sample-wise quantity (torques, joint motion, reach) is one of the
+outputs of the compiled per-sample library (:mod:`cpopt.flatopt.samples`). The transcription
+writes them as symbols Y; :mod:`cpopt.flatopt.assemble` joins the library's derivatives and
+CasADi's exact derivatives of the rest, and the sample part of the Hessian of the Lagrangian is
+block diagonal (10 x 10 per sample).
 """
 
 from __future__ import annotations
@@ -32,16 +34,23 @@ from .. import flat
 from ..bspline import SplineBasis
 from ..limits import Limit
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
-from ..objectives import squared_norm, weights
+from ..objectives import default_hessian, squared_norm, weights
 from ..problem import Problem
 from ..solver import ipopt_options
 from . import path_timing
+from .assemble import SampleBlock, assemble
 from .layout import Layout
-from .samples import sample_function
+from .quadrature import Grid, PhaseSamples, piece_counts
+from .samples import NY, QD, REACH, TAU, Q, mapped_outputs
 
 GAMMA_SAFETY = 2e-3
 """Relative margin added to gamma_min on the sample grid (the exact certificate after the solve
 then rarely needs a refinement round)."""
+CURVATURE = {"exact": "all", "gauss_newton": "none"}
+"""The curvature of the samples' outputs each ``optimizer.solver.hessian`` keeps
+(:data:`cpopt.flatopt.assemble.CURVATURE`)."""
+GAMMA_GRID = 241
+"""Points per phase where |gamma| >= gamma_min is a constraint (then certified exactly)."""
 LIMIT_SAFETY = 2e-3
 """Relative margin kept from torque and velocity limits on the sample grid."""
 REACH_EPS = {"RRR": 1e-4, "PRR": 1e-4, "RPR": 1e-4, "PPR": -1.0}
@@ -65,7 +74,8 @@ class SplineCurve:
     def derivatives(self, s: np.ndarray, orders: int = 5) -> list:
         """CP derivatives 0..orders-1 at normalised times s, each (len(s), 2) [m/s^r]."""
         return [
-            ca.mtimes(self.basis.matrix(s, r), self.coefficients) / self.h**r for r in range(orders)
+            ca.mtimes(basis_matrix(self.basis, s, r), self.coefficients) / self.h**r
+            for r in range(orders)
         ]
 
     @property
@@ -123,6 +133,8 @@ class FlatNLP:
         ``(core x, p) -> lifted samples`` consistent with the core variables.
     constraints : casadi.Function
         ``(x, p) -> g``.
+    samples : tuple of PhaseSamples
+        Where each phase is sampled.
     build_time : float
         Seconds spent building [s].
     """
@@ -136,6 +148,7 @@ class FlatNLP:
     unpack: ca.Function
     lift: ca.Function
     constraints: ca.Function
+    samples: tuple
     build_time: float
 
     def parameters(self, values: dict) -> np.ndarray:
@@ -164,6 +177,8 @@ class _Transcription:
     lifted: list = field(default_factory=list)
     lifted_values: list = field(default_factory=list)
     coefficients: list = field(default_factory=list)
+    blocks: list = field(default_factory=list)
+    samples: list = field(default_factory=list)
 
     @property
     def settings(self):
@@ -265,8 +280,18 @@ def _settings_key(problem: Problem) -> tuple:
 _CACHE: dict = {}
 
 
-def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
-    """Build (or fetch) the NLP for a problem structure, a sign of gamma and extra samples.
+def initial_grids(problem: Problem) -> tuple[Grid, ...]:
+    """Each phase's sample grid before any refinement (:mod:`cpopt.flatopt.quadrature`)."""
+    o = problem.spec.optimizer
+    if o.curve == "path_timing":  # the timing law's pieces (the path's knots move with it)
+        bases = [SplineBasis(p.timing.degree, p.timing.coefficients) for p in o.path]
+    else:
+        bases = [SplineBasis(o.degree, coefficient_count(o))] * (len(problem.nodes) - 1)
+    return tuple(Grid(piece_counts(o.samples, b.breaks.size - 1)) for b in bases)
+
+
+def build(problem: Problem, sign: int, grids: tuple[Grid, ...] | None = None) -> FlatNLP:
+    """Build (or fetch) the NLP for a problem structure, a sign of gamma and sample grids.
 
     Parameters
     ----------
@@ -275,16 +300,17 @@ def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
         fixed values are parameters of the returned solver.
     sign : int
         The sign of gamma, +1 or -1.
-    extra : tuple
-        Per phase, normalised times of samples added by refinement (or empty).
+    grids : tuple of Grid, optional
+        Each phase's samples (default :func:`initial_grids`; refinement adds to them).
     """
+    grids = initial_grids(problem) if grids is None else grids
     holding = holding_pattern(problem, sign)
     key = (
         problem.arm,
         len(problem.nodes),
         tuple(sorted(problem.free)),
         sign,
-        extra,
+        grids,
         holding,
         _settings_key(problem),
     )
@@ -294,10 +320,10 @@ def build(problem: Problem, sign: int, extra: tuple) -> FlatNLP:
         tr = _Transcription(problem, sign, holding, sym)
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
-            _phase(tr, k, extra[k] if extra else ())
+            _phase(tr, k, grids[k].samples())
         _holding_constraints(tr)
         _whole_motion_terms(tr)
-        _CACHE[key] = _finish(tr, bool(extra), start)
+        _CACHE[key] = _finish(tr, start)
     return _CACHE[key]
 
 
@@ -376,6 +402,12 @@ def _coefficients(tr: _Transcription, k: int, h) -> ca.MX:
     return ca.vertcat(*parts)
 
 
+def basis_matrix(basis: SplineBasis, s: np.ndarray, order: int) -> ca.DM:
+    """The basis matrix as a sparse CasADi matrix: its structural zeros keep every sample
+    depending on the few coefficients of its piece (a dense one makes Jacobians dense)."""
+    return ca.sparsify(ca.DM(basis.matrix(s, order)))
+
+
 def _curve(tr: _Transcription, k: int, h):
     """Phase k's curve of the problem's family, its decision blocks and boundary conditions."""
     if tr.settings.curve != "path_timing":
@@ -395,16 +427,16 @@ def _curve(tr: _Transcription, k: int, h):
     )
 
 
-def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
+def _phase(tr: _Transcription, k: int, samples: PhaseSamples) -> None:
     """Everything of phase k: its curve, samples, constraints and objective terms."""
     times = tr.times
     h = times[k + 1] - times[k]
     curve = _curve(tr, k, h)
     tr.coefficients.append(curve.packed)
-    m = tr.settings.samples + (1 - tr.settings.samples % 2)  # odd, for Simpson's rule
-    s = np.r_[np.linspace(0.0, 1.0, m), np.asarray(extra, float)]
+    tr.samples.append(samples)
+    s, m = samples.s, samples.quadrature
     D = curve.derivatives(s)  # each (len(s), 2)
-    # sample j's CP derivatives as the 2 x 5 block j of one 2 x 5N matrix, for the map
+    # sample j's CP derivatives as the 2 x 5 block j of one 2 x 5N matrix
     P_all = ca.reshape(ca.vertcat(*[d.T for d in D]), 2, 5 * len(s))
     lifted = ca.MX.sym(f"P{k}", 2, 5 * len(s))
     tr.lifted.append(ca.vec(lifted))
@@ -417,35 +449,32 @@ def _phase(tr: _Transcription, k: int, extra: tuple) -> None:
         f"lifted samples (phase {k + 1})",
         [w for w in where for _ in range(10)],
     )
-    sample = sample_function(tr.problem.arm, tr.settings.solver.jit).map(len(s), "serial")
-    tau, q, qd, reach = sample(lifted, tr.sign)
-    _gamma_constraints(tr, k, curve, s, m)
+    Y = ca.MX.sym(f"Y{k}", NY, len(s))  # the samples' outputs (see assemble)
+    sigma = np.full(len(s), float(tr.sign))
+    tr.blocks.append(SampleBlock(lifted, Y, sigma))
+    tau, qd = Y[TAU, :], Y[QD, :]
+    _gamma_constraints(tr, k, curve, s[m:])
     if tr.problem.arm.kind != "PPR":
+        reach = Y[REACH, :]
         tr.g.add(reach.T, REACH_EPS[tr.problem.arm.kind], ca.inf, f"reach (phase {k + 1})", where)
-    _limit_constraints(tr, {"tau": tau, "q": q, "qd": qd}, where)
-    quadrature = _simpson(m)
+    _limit_constraints(tr, {"tau": tau, "q": Y[Q, :], "qd": qd}, where)
+    w = samples.weights
     if "torque" in tr.cost_terms:
-        tr.cost_terms["torque"] += h * ca.dot(quadrature, squared_norm(tau[:, :m]).T)
+        tr.cost_terms["torque"] += h * ca.dot(w, squared_norm(tau[:, :m]).T)
     if "energy" in tr.cost_terms:
-        _energy(tr, k, h, tau, qd, sample(P_all, tr.sign), s, m)
+        consistent = mapped_outputs(tr.problem.arm, len(s))(P_all, ca.DM(sigma).T)
+        _energy(tr, k, h, Y, consistent, samples)
     if "v_squared" in tr.cost_terms:
-        tr.cost_terms["v_squared"] += h * ca.dot(quadrature, squared_norm(D[4][:m, :].T).T)
+        tr.cost_terms["v_squared"] += h * ca.dot(w, squared_norm(D[4][:m, :].T).T)
     _node_constraints(tr, k, h)
 
 
-def _simpson(m: int) -> np.ndarray:
-    """Simpson's weights on m (odd) equally spaced points of [0, 1]."""
-    w = np.ones(m)
-    w[1:-1:2], w[2:-1:2] = 4, 2
-    return w / (3 * (m - 1))
-
-
-def _gamma_constraints(tr: _Transcription, k: int, curve, s: np.ndarray, m: int) -> None:
-    """|gamma| >= gamma_min on a grid 4 times finer than the samples (gamma is cheap: the norm
-    of the CP's acceleration plus g0 e_y)."""
+def _gamma_constraints(tr: _Transcription, k: int, curve, extra: np.ndarray) -> None:
+    """|gamma| >= gamma_min on :data:`GAMMA_GRID` equally spaced points and at the extra
+    samples (gamma is cheap: the norm of the CP's acceleration plus g0 e_y)."""
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
-    s_gamma = np.r_[np.linspace(0.0, 1.0, 4 * (m - 1) + 1), s[m:]]
+    s_gamma = np.r_[np.linspace(0.0, 1.0, GAMMA_GRID), extra]
     acc = curve.derivatives(s_gamma, 3)[2] + ca.repmat(ca.DM([[0, g0]]), len(s_gamma), 1)
     tr.g.add(
         ca.sum2(acc**2) - gmin**2,
@@ -465,17 +494,17 @@ def _limit_constraints(tr: _Transcription, quantities: dict, where: list) -> Non
         tr.g.add(values, lo, hi, limit.label, where)
 
 
-def _energy(tr: _Transcription, k: int, h, tau, qd, consistent, s: np.ndarray, m: int) -> None:
+def _energy(tr: _Transcription, k: int, h, Y, consistent, samples: PhaseSamples) -> None:
     """|tau_i q_i'| through its epigraph: slack >= +-power, exact and smooth for Ipopt."""
-    power = tau[:, :m] * qd[:2, :m]
+    m = samples.quadrature
+    power = Y[TAU, :m] * Y[QD, :m][:2, :]
     slack = ca.MX.sym(f"e{k}", 2, m)
-    tau0, _, qd0, _ = consistent
     tr.lifted.append(ca.vec(slack))
-    tr.lifted_values.append(ca.vec(ca.fabs(tau0[:, :m] * qd0[:2, :m])))
-    where = [(k, float(sj)) for sj in s[:m] for _ in range(2)]
+    tr.lifted_values.append(ca.vec(ca.fabs(consistent[TAU, :m] * consistent[QD, :m][:2, :])))
+    where = [(k, float(sj)) for sj in samples.s[:m] for _ in range(2)]
     tr.g.add(ca.vec(slack - power), 0, ca.inf, f"energy slack (phase {k + 1})", where)
     tr.g.add(ca.vec(slack + power), 0, ca.inf, f"energy slack (phase {k + 1})", where)
-    tr.cost_terms["energy"] += h * ca.dot(_simpson(m), ca.sum1(slack).T)
+    tr.cost_terms["energy"] += h * ca.dot(samples.weights, ca.sum1(slack).T)
 
 
 def _node_constraints(tr: _Transcription, k: int, h) -> None:
@@ -510,7 +539,7 @@ def _whole_motion_terms(tr: _Transcription) -> None:
         tr.g.add(tr.margin, tr.settings.gamma_min, ca.inf, "gamma margin >= gamma_min", [(0, 0.0)])
 
 
-def _finish(tr: _Transcription, refinement: bool, start: float) -> FlatNLP:
+def _finish(tr: _Transcription, start: float) -> FlatNLP:
     """Assemble the NLP and its helper functions, create the solver."""
     o = tr.settings
     w = weights(o.objective)
@@ -520,21 +549,20 @@ def _finish(tr: _Transcription, refinement: bool, start: float) -> FlatNLP:
     p_names = [n for n in tr.sym if n not in tr.problem.free]
     p = ca.vertcat(*[tr.sym[n] for n in p_names])
     g = ca.vertcat(*tr.g.exprs)
+    hessian = o.solver.hessian or default_hessian(o.objective)
+    nlp = assemble(x, p, cost, g, tr.blocks, tr.problem.arm, CURVATURE[hessian])
     opts = {
-        # the first-round solver is expanded to SX (fast iterations, cached for reuse); the
-        # refinement rounds start warm and need few iterations, so a cheap MX build wins there
-        "expand": not refinement,
         "print_time": False,
         "show_eval_warnings": False,
         "ipopt": ipopt_options(o.solver),
+        **nlp.options,
     }
-    if o.solver.jit:
-        # compile the small per-sample function (and CasADi its derivatives) to C; compiling
-        # the whole expanded NLP takes gcc minutes, so the outer graph stays MX
-        opts["expand"] = False
-    solver = ca.nlpsol("flat", "ipopt", {"x": x, "p": p, "f": cost, "g": g}, opts)
+    solver = ca.nlpsol("flat", "ipopt", {"x": x, "p": p, "f": nlp.f, "g": nlp.g}, opts)
     values = ca.vertcat(*tr.sym.values())
-    outs = [values, *tr.coefficients, *[tr.cost_terms[k] for k in w]]
+    Y = ca.horzcat(*[b.Y for b in tr.blocks])
+    outs = ca.Function(
+        "unpack_y", [x, p, Y], [values, *tr.coefficients, *[tr.cost_terms[k] for k in w]]
+    )
     return FlatNLP(
         solver=solver,
         layout=tr.layout,
@@ -542,8 +570,9 @@ def _finish(tr: _Transcription, refinement: bool, start: float) -> FlatNLP:
         lbg=np.array(tr.g.lower, float),
         ubg=np.array(tr.g.upper, float),
         rows=tr.g.rows,
-        unpack=ca.Function("unpack", [x, p], outs),
+        unpack=ca.Function("unpack", [x, p], outs(x, p, nlp.outputs(x, p))),
         lift=ca.Function("lift", [x_core, p], [ca.vertcat(*tr.lifted_values)]),
-        constraints=ca.Function("constraints", [x, p], [g]),
+        constraints=ca.Function("constraints", [x, p], [nlp.g]),
+        samples=tuple(tr.samples),
         build_time=time.perf_counter() - start,
     )
