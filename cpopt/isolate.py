@@ -77,6 +77,8 @@ def solve_isolated(problem: Problem) -> Solution:
         return _killed(problem, child, stage, time.monotonic() - start)
     except EOFError:
         child.join()
+        if child.exitcode == -signal.SIGINT:  # Ctrl-C reached the child first (same group)
+            raise KeyboardInterrupt from None
         return Solution(
             problem.name,
             "not_converged",
