@@ -56,9 +56,10 @@ class Progress:
             print(f"cpopt: {self.problem}: {text} [{elapsed:.1f} s]", file=self.stream, flush=True)
 
     def iteration(self, count: int, detail: str = "") -> None:
-        """An iteration count, at most once every :data:`ITERATION_EVERY` seconds."""
+        """An iteration count: a run's first, then at most once every :data:`ITERATION_EVERY`
+        seconds."""
         now = time.monotonic()
-        if now - self._last_iteration >= ITERATION_EVERY:
+        if count == 1 or now - self._last_iteration >= ITERATION_EVERY:
             self._last_iteration = now
             self.write(f"iteration {count}" + (f" ({detail})" if detail else ""))
 

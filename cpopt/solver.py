@@ -12,6 +12,8 @@ from typing import Protocol
 import casadi as ca
 import numpy as np
 
+from . import progress
+
 IPOPT_STATUS = {
     "Solve_Succeeded": "solved",
     "Solved_To_Acceptable_Level": "solved",
@@ -161,11 +163,71 @@ def read_stats(stats: Mapping) -> tuple[str, str, int]:
     return f"return status {status}", word, iterations
 
 
-def run_nlp(solver: ca.Function, **arguments) -> NlpRun:
-    """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg)."""
+class IterationReporter(ca.Callback):
+    """Ipopt's iteration callback (nlpsol option ``iteration_callback``): each iteration is
+    reported to :func:`cpopt.progress.iteration` with the label of the run.
+
+    A stop (Ctrl-C, the wall-clock limit) raised while the callback runs would be swallowed by
+    CasADi; the callback keeps it, asks Ipopt to stop, and :func:`run_nlp` raises it again once
+    Ipopt has returned.
+
+    Parameters
+    ----------
+    nx, ng, np_ : int
+        Sizes of the NLP's decision vector, constraints and parameters.
+    """
+
+    def __init__(self, nx: int, ng: int, np_: int) -> None:
+        ca.Callback.__init__(self)
+        self.sizes = {"x": nx, "lam_x": nx, "g": ng, "lam_g": ng, "lam_p": np_, "f": 1}
+        self.count, self.label, self.stop = 0, "", None
+        self.construct("iterations", {})
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.sizes.get(ca.nlpsol_out(i), 0), 1)
+
+    def start(self, label: str) -> None:
+        """Reset the count for a new run called ``label``."""
+        self.count, self.label, self.stop = 0, label, None
+
+    def eval(self, arg) -> list:
+        self.count += 1
+        try:
+            progress.iteration(self.count, self.label)
+        except BaseException as stop:  # Ctrl-C or the time limit: stop Ipopt, raise later
+            self.stop = stop
+        return [1 if self.stop is not None else 0]
+
+
+def run_nlp(
+    solver: ca.Function, reporter: IterationReporter | None = None, label: str = "", **arguments
+) -> NlpRun:
+    """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg).
+
+    ``reporter`` is the solver's :class:`IterationReporter`, if it has one; ``label`` names the
+    run in progress lines and above Ipopt's output (``--verbose``).
+    """
+    if label:
+        progress.ipopt_run(label)
+    if reporter is not None:
+        reporter.start(label)
     start = time.perf_counter()
     solution = solver(**arguments)
     elapsed = time.perf_counter() - start
+    if reporter is not None and reporter.stop is not None:
+        raise reporter.stop
     ipopt, status, iterations = read_stats(solver.stats())
     return NlpRun(
         x=np.asarray(solution["x"]).ravel(),
@@ -179,6 +241,7 @@ def run_nlp(solver: ca.Function, **arguments) -> NlpRun:
 
 __all__ = [
     "IPOPT_STATUS",
+    "IterationReporter",
     "NlpRun",
     "PlannerDetails",
     "SolverStats",

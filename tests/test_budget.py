@@ -18,6 +18,7 @@ from test_cli import GOOD
 from cpopt.budget import Budget, TimeLimitExceeded, check_time, enforced
 from cpopt.cli import main
 from cpopt.integrate import DivergenceError, integrate
+from cpopt.problem import parse_problem
 from cpopt.progress import Progress, reporting, stage
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -134,6 +135,8 @@ def _interrupt(args, when: str, tmp_path: Path):
     "problem, flags, when",
     [
         ("swing_up_min_torque.yaml", [], "Ipopt run"),  # building the NLP, then Ipopt
+        # inside Ipopt's iteration callback: kept, Ipopt stopped, raised once it returns
+        ("swing_up_min_torque.yaml", [], "iteration 1 (gamma positive)"),
         ("paper_transfer_slow.yaml", [], "verifying"),  # Python code: a plain unwind
         ("paper_swing_up.yaml", ["--plot", "--animate"], "writing results"),  # temp files
     ],
@@ -150,6 +153,31 @@ def test_ctrl_c_exits_130_with_one_line_and_no_leftovers(tmp_path, problem, flag
     leftovers = [p.name for p in out.rglob("*") if p.is_file() and ".tmp" in p.name]
     assert leftovers == []
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"] or not out.exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux /proc")
+def test_ctrl_c_reaching_the_solver_child_first_exits_130(tmp_path):
+    """A terminal's Ctrl-C signals the whole process group: the solver child (default SIGINT
+    action) may die before the parent sees its own signal; that too is an interrupt."""
+    command = [sys.executable, "-m", "cpopt", "solve", str(PROBLEMS / "swing_up_min_torque.yaml")]
+    run = subprocess.Popen(
+        [*command, "--verbose", "--out", str(tmp_path / "out")],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    for line in run.stderr:
+        if "(gamma negative)" in line:
+            break
+    children = Path(f"/proc/{run.pid}/task/{run.pid}/children").read_text().split()
+    for child in children:
+        os.kill(int(child), signal.SIGINT)
+    time.sleep(1.0)  # the parent's own signal arrives late
+    run.send_signal(signal.SIGINT)
+    after = run.communicate(timeout=60)[1]
+    assert children and run.returncode == 130, after
+    assert after.strip().splitlines()[-1] == "cpopt: interrupted" and "Traceback" not in after
 
 
 def test_progress_goes_to_a_terminal_or_with_verbose_and_never_with_quiet(capsys):
@@ -179,4 +207,23 @@ def test_progress_goes_to_a_terminal_or_with_verbose_and_never_with_quiet(capsys
     assert "planning" in verbose.text
     stage("outside any block")  # silent, no error
     assert capsys.readouterr().err == ""
-    assert os.environ.get("CPOPT_NO_SUCH") is None
+
+
+def test_the_flat_optimizer_reports_each_sign_and_its_iterations():
+    """Progress from inside Ipopt: the sign being solved, then its iteration count (Ipopt's
+    iteration callback), labelled with the run."""
+    import io
+
+    from cpopt.flatopt import optimize
+    from cpopt.problem import load_problem
+
+    data = load_problem(PROBLEMS / "transfer_min_torque.yaml").spec.model_dump()
+    data["optimizer"].update(samples=21, gamma_sign=["positive"])
+    stream = io.StringIO()
+    with reporting(Progress(stream, verbose=True), "t"):
+        result = optimize(parse_problem(data))
+    assert result.status == "solved"
+    lines = stream.getvalue().splitlines()
+    assert any(line.startswith("cpopt: t: flat optimizer: gamma positive [") for line in lines)
+    first = next(line for line in lines if "iteration " in line)
+    assert first.startswith("cpopt: t: iteration 1 (gamma positive) [")

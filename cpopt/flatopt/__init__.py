@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import flat
+from .. import flat, progress
 from ..nodes import gamma_is_free, node_names, nodes_from_values, to_file
 from ..objectives import weights
 from ..plan import CPPlan, Phase
@@ -167,7 +167,10 @@ def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
     grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
     iterations = refinements = 0
-    for _ in range(1 + MAX_REFINEMENTS):
+    word = "positive" if sign > 0 else "negative"
+    for round_ in range(1, 2 + MAX_REFINEMENTS):
+        label = f"gamma {word}" + (f", refinement {round_ - 1}" if round_ > 1 else "")
+        progress.stage(f"flat optimizer: {label}")
         tic = time.perf_counter()
         nlp = build(problem, sign, grids)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
@@ -175,7 +178,9 @@ def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
         # a refinement round keeps the core variables and lifts them onto the new samples
         x0 = initial_guess(nlp, problem, sign) if x0 is None else nlp.complete(x0, p)
         lbx, ubx = _bounds(nlp, problem)
-        run = run_nlp(nlp.solver, x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+        run = run_nlp(
+            nlp.solver, nlp.reporter, label, x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg
+        )
         solve_time += run.solve_time_s
         iterations += run.iterations
         plan, times, terms = plan_from(problem, nlp, run.x, p, sign)

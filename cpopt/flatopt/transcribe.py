@@ -36,7 +36,7 @@ from ..limits import Limit
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..objectives import default_hessian, squared_norm, weights
 from ..problem import Problem
-from ..solver import ipopt_options
+from ..solver import IterationReporter, ipopt_options
 from . import path_timing
 from .assemble import SampleBlock, assemble
 from .layout import Layout
@@ -137,6 +137,8 @@ class FlatNLP:
         Where each phase is sampled.
     build_time : float
         Seconds spent building [s].
+    reporter : IterationReporter
+        The solver's iteration callback (progress, clean stops).
     """
 
     solver: ca.Function
@@ -150,6 +152,7 @@ class FlatNLP:
     constraints: ca.Function
     samples: tuple
     build_time: float
+    reporter: IterationReporter
 
     def parameters(self, values: dict) -> np.ndarray:
         """The solver's parameters from every node value by name (SI units)."""
@@ -551,10 +554,12 @@ def _finish(tr: _Transcription, start: float) -> FlatNLP:
     g = ca.vertcat(*tr.g.exprs)
     hessian = o.solver.hessian or default_hessian(o.objective)
     nlp = assemble(x, p, cost, g, tr.blocks, tr.problem.arm, CURVATURE[hessian])
+    reporter = IterationReporter(x.numel(), g.numel(), p.numel())
     opts = {
         "print_time": False,
         "show_eval_warnings": False,
         "ipopt": ipopt_options(o.solver),
+        "iteration_callback": reporter,
         **nlp.options,
     }
     solver = ca.nlpsol("flat", "ipopt", {"x": x, "p": p, "f": nlp.f, "g": nlp.g}, opts)
@@ -575,4 +580,5 @@ def _finish(tr: _Transcription, start: float) -> FlatNLP:
         constraints=ca.Function("constraints", [x, p], [nlp.g]),
         samples=tuple(tr.samples),
         build_time=time.perf_counter() - start,
+        reporter=reporter,
     )
