@@ -1,17 +1,20 @@
-"""Time-varying LQR on the arm's full joint-space dynamics, linearised along the plan.
+"""Time-varying LQR on the arm's full joint-space dynamics, designed for the sampled loop.
 
 With x = (q, qd) (6,) and u = (tau1, tau2), the model's dynamics x' = f(x, u) (the passive
-joint torque-free) are linearised along the reference, A(t) = df/dx, B(t) = df/du (CasADi
-Jacobians at the control instants, linear in between). The Riccati equation
+joint torque-free) are linearised along the reference at each control instant t_k,
+A_k = df/dx, B_k = df/du (CasADi Jacobians), and discretised exactly for the zero-order hold
+of one period h (SciPy's matrix exponential). The discrete Riccati recursion runs backward on
+the control grid (:func:`riccati_gains`) and the law applied at t_k is
 
-    -S' = A^T S + S A - S B R^-1 B^T S + Q,   S(T) = Qf,
+    tau = tau_ff,k - K_k (x_measured - x_ref,k),
 
-is integrated backward with SciPy, and the law applied at instant t_k is
-
-    tau = tau_ff,k - R^-1 B_k^T S(t_k) (x_measured - x_ref,k),
-
-with the plan's torque averaged over the period as feed-forward. Nothing here needs gamma != 0,
-so the same controller tracks flat and collocation plans.
+with the plan's torque averaged over the period as feed-forward tau_ff,k. Designing for the
+hold rather than integrating the continuous Riccati equation and holding its gains is what
+lets the gains be high at 1 kHz: measured on the PRR swing-up with position weights of 2000
+and R_i = 0.2 / (the plan's peak |tau_i|)^2, the continuous design leaves 6e-4 m of CP error
+on the model itself and the discrete one 9e-6 m; with a terminal weight of 1e4 the held
+continuous gains diverge on 16 of 20 unsaturated plants, the discrete ones on none. Nothing
+here needs gamma != 0, so the same controller tracks flat and collocation plans.
 """
 
 from __future__ import annotations
@@ -20,9 +23,10 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
+from scipy.linalg import expm
 
 from ..dynamics import arm_dynamics
+from ..mapping import mapped
 from ..robot import Arm
 from .controller import Controller
 from .reference import Reference
@@ -66,8 +70,28 @@ def _weights(values, size: int, name: str) -> np.ndarray:
     return np.diag(w)
 
 
+def discrete_linearization(reference: Reference) -> tuple[np.ndarray, np.ndarray]:
+    """Ad (n, 6, 6) and Bd (n, 6, 2): the model linearised at each instant t_k (k < n) and
+    discretised exactly for a zero-order hold over the period (matrix exponential of
+    [[A_k, B_k], [0, 0]] h)."""
+    n = reference.steps
+    A, B = mapped(linearization(reference.arm), n)(reference.x[:-1].T, reference.tau[:-1].T)
+    M = np.zeros((n, 8, 8))
+    M[:, :6, :6] = np.asarray(A).reshape(6, n, 6).transpose(1, 0, 2)
+    M[:, :6, 6:] = np.asarray(B).reshape(6, n, 2).transpose(1, 0, 2)
+    E = expm(M * reference.period)
+    return E[:, :6, :6], E[:, :6, 6:]
+
+
 def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF) -> np.ndarray:
-    """Feedback gains R^-1 B^T S at every control instant (n + 1, 2, 6).
+    """Feedback gains K_k at every control instant (n + 1, 2, 6); the last repeats K_{n-1}.
+
+    The discrete Riccati recursion on the zero-order-hold model of :func:`discrete_linearization`
+    with the stage cost weighted by the period h, so that Q and R keep their continuous-time
+    meaning:
+
+        S_n = Qf,   K_k = (R h + Bd^T S_{k+1} Bd)^-1 Bd^T S_{k+1} Ad,
+        S_k = Q h + Ad^T S_{k+1} (Ad - Bd K_k).
 
     Parameters
     ----------
@@ -80,34 +104,17 @@ def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF)
     R = _weights(R, 2, "R")
     if np.any(np.diag(R) <= 0):
         raise ValueError(f"R: the input weights must be > 0, got {np.diag(R).tolist()}")
-    n = reference.t.size
-    f = linearization(reference.arm).map(n)
-    A, B = (np.asarray(m) for m in f(reference.x.T, reference.tau.T))
-    A = A.reshape(6, n, 6).transpose(1, 0, 2)
-    B = B.reshape(6, n, 2).transpose(1, 0, 2)
-    R_inv = np.linalg.inv(R)
-    t = reference.t
+    Ad, Bd = discrete_linearization(reference)
     h = reference.period
-
-    def rhs(s, S_flat):
-        # s = t_end - t runs forward; linear interpolation between the instants
-        tt = t[-1] - s
-        k = int(np.clip((tt - t[0]) // h, 0, n - 2))
-        w = np.clip((tt - t[k]) / h, 0.0, 1.0)
-        Ak = (1 - w) * A[k] + w * A[k + 1]
-        Bk = (1 - w) * B[k] + w * B[k + 1]
-        S = S_flat.reshape(6, 6)
-        dS = Ak.T @ S + S @ Ak - S @ Bk @ R_inv @ Bk.T @ S + Q
-        return dS.ravel()
-
-    span = t[-1] - t[0]
-    sol = solve_ivp(rhs, (0.0, span), Qf.ravel(), method="RK45", t_eval=span - (t - t[0])[::-1],
-                    rtol=1e-6, atol=1e-8, max_step=max(h, span / 50))  # fmt: skip
-    if not sol.success:
-        raise RuntimeError(f"the Riccati equation failed to integrate: {sol.message}")
-    S = sol.y.T[::-1].reshape(n, 6, 6)
-    S = (S + S.transpose(0, 2, 1)) / 2
-    return np.einsum("ij,nkj,nkl->nil", R_inv, B, S)
+    gains = np.zeros((reference.steps + 1, 2, 6))
+    S = Qf
+    for k in range(reference.steps - 1, -1, -1):
+        BtS = Bd[k].T @ S
+        gains[k] = np.linalg.solve(R * h + BtS @ Bd[k], BtS @ Ad[k])
+        S = Q * h + Ad[k].T @ S @ (Ad[k] - Bd[k] @ gains[k])
+        S = (S + S.T) / 2  # symmetric against round-off over thousands of steps
+    gains[-1] = gains[-2]
+    return gains
 
 
 class TVLQRController(Controller):
