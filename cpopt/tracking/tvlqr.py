@@ -10,8 +10,8 @@ the control grid (:func:`riccati_gains`) and the law applied at t_k is
 
 with the plan's torque averaged over the period as feed-forward tau_ff,k. Designing for the
 hold rather than integrating the continuous Riccati equation and holding its gains is what
-lets the gains be high at 1 kHz: measured on the PRR swing-up with position weights of 2000
-and R_i = 0.2 / (the plan's peak |tau_i|)^2, the continuous design leaves 6e-4 m of CP error
+lets the gains be high at 1 kHz: measured on the PRR swing-up with the default weights
+(:data:`DEFAULT_Q`, :func:`relative_R`), the continuous design leaves 6e-4 m of CP error
 on the model itself and the discrete one 9e-6 m; with a terminal weight of 1e4 the held
 continuous gains diverge on 16 of 20 unsaturated plants, the discrete ones on none. Nothing
 here needs gamma != 0, so the same controller tracks flat and collocation plans.
@@ -31,25 +31,35 @@ from ..robot import Arm
 from .controller import Controller
 from .reference import Reference
 
-DEFAULT_Q = (100.0, 100.0, 100.0, 1.0, 1.0, 1.0)
+DEFAULT_Q = (2000.0, 2000.0, 2000.0, 1.0, 1.0, 1.0)
 """Diagonal of Q on (q1, q2, q3 [rad or m], q1dot, q2dot, q3dot [rad/s or m/s]).
 
-Chosen with :data:`DEFAULT_R` by measurement at 1 kHz on six bundled plans (the two paper
-transfers' fast one, the paper's and the PRR swing-ups, the minimum-time, torque-limited and
-minimum-torque-transfer plans) on the benchmark plant of :mod:`cpopt.tracking.robustness`,
-21-step sweeps and 30 Monte Carlo plants each, Qf = Q. Success in sweeps / Monte Carlo:
+Chosen with :data:`R_RELATIVE` by measurement at 1 kHz on the benchmark plant of
+:mod:`cpopt.tracking.robustness` (20 Monte Carlo plants on each of the twelve bundled plans,
+Qf = Q; the README has the figures). Mean Monte Carlo success over the twelve plans:
 
-* R = 3e-5 (the default): 0.83-0.92 / 0.23-0.60, every plan followed on the model within
-  2e-5 m;
-* R = 1e-4: 0.81-0.91 / 0.17-0.57; R = 1e-3: 0 % on the heavy transfer arm;
-* R = 1e-5: 0.84-0.93 / 0.27-0.70, but too fast for a 1 kHz hold on the PRR swing-up
-  (1e-3 m on the model), as are Q = 1000 on positions with 10 on velocities (2e-2 m) and a
-  velocity weight of 3 (2e-3 to 5e-3 m);
-* a terminal weight 100 times Q helps the paper's swing-up and hurts the minimum-time and
-  torque-limited plans (0.03 and 0.13 in Monte Carlo).
+* Q = 100 on positions, 1 on velocities with the former absolute R = 3e-5 on both torques:
+  0.67 (0.25 to 1.0); gains alone barely move it: 10 times the position weights, a position
+  weight of 1000 on the passive joint, R = 1e-5, all within 0.05 of it on the worst plans;
+* position weights 2000 with R_RELATIVE = 0.2 (the default): 0.77 (0.35 to 1.0), best on the
+  transfers (paper_transfer 0.40 -> 0.65);
+* position weights 5000 with R_RELATIVE = 0.5 (a lower velocity weight relative to R): 0.78,
+  better on the swing-ups (paper_swing_up 0.85, prr_swing_up 0.95), worse on the heavy
+  transfers (paper_transfer 0.45, transfer_min_torque 0.50);
+* velocity weights 3 (R_RELATIVE = 0.02), a terminal weight ten times Q, or Qf the
+  infinite-horizon cost at the goal (discrete ARE): worse on every plan tried (a terminal
+  push ends the plan with the joints moving at 0.3 to 1.3 rad/s).
+
+The failures that remain are not the gains': on paper_transfer, varying only the friction
+or the masses of links 1 and 2 within +-10 % leaves every run a success; varying the lengths
+of links 1 and 2, or link 3's mass, centre of mass and inertia, makes the plan no motion of
+the real arm (the passive link swings otherwise), and at T the transient has not died out.
 """
-DEFAULT_R = (3e-5, 3e-5)
-"""Diagonal of R on (tau1, tau2) [1/(N m)^2 or 1/N^2] (see :data:`DEFAULT_Q`)."""
+R_RELATIVE = 0.2
+"""Default torque weight relative to the plan: R_i = R_RELATIVE / (peak |tau_i| of the plan)^2
+(:func:`relative_R`), so that a correction of a given fraction of a joint's peak torque costs
+the same on every arm and joint (the bundled plans' peak torques range from 27 N to 1046 N m;
+one absolute R made the weak joint of the heavy transfer arm as cheap as its strong one)."""
 DEFAULT_QF = DEFAULT_Q
 """Diagonal of the terminal weight Qf on the joint state (see :data:`DEFAULT_Q`)."""
 
@@ -70,6 +80,14 @@ def _weights(values, size: int, name: str) -> np.ndarray:
     return np.diag(w)
 
 
+def relative_R(reference: Reference, relative: float = R_RELATIVE) -> tuple[float, float]:
+    """The default R: ``relative`` over the square of the plan's peak |torque| of each joint
+    [1/(N m)^2 or 1/N^2]; a joint the plan never loads is weighted as if its peak were 1."""
+    peak = np.abs(reference.tau).max(axis=0)
+    peak = np.where(peak > 0, peak, 1.0)
+    return tuple(float(v) for v in relative / peak**2)
+
+
 def discrete_linearization(reference: Reference) -> tuple[np.ndarray, np.ndarray]:
     """Ad (n, 6, 6) and Bd (n, 6, 2): the model linearised at each instant t_k (k < n) and
     discretised exactly for a zero-order hold over the period (matrix exponential of
@@ -83,7 +101,7 @@ def discrete_linearization(reference: Reference) -> tuple[np.ndarray, np.ndarray
     return E[:, :6, :6], E[:, :6, 6:]
 
 
-def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF) -> np.ndarray:
+def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=None, Qf=DEFAULT_QF) -> np.ndarray:
     """Feedback gains K_k at every control instant (n + 1, 2, 6); the last repeats K_{n-1}.
 
     The discrete Riccati recursion on the zero-order-hold model of :func:`discrete_linearization`
@@ -98,10 +116,11 @@ def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF)
     reference : Reference
         The plan on the control grid.
     Q, R, Qf : sequence of float
-        Diagonals of the state weight (6), input weight (2, > 0) and terminal weight (6).
+        Diagonals of the state weight (6), input weight (2, > 0; None: :func:`relative_R`)
+        and terminal weight (6).
     """
     Q, Qf = _weights(Q, 6, "Q"), _weights(Qf, 6, "Qf")
-    R = _weights(R, 2, "R")
+    R = _weights(relative_R(reference) if R is None else R, 2, "R")
     if np.any(np.diag(R) <= 0):
         raise ValueError(f"R: the input weights must be > 0, got {np.diag(R).tolist()}")
     Ad, Bd = discrete_linearization(reference)
@@ -125,12 +144,12 @@ class TVLQRController(Controller):
     reference : Reference
         The plan on the control grid.
     Q, R, Qf : sequence of float
-        Diagonals of the weights (see :func:`riccati_gains`).
+        Diagonals of the weights (see :func:`riccati_gains`; R None: :func:`relative_R`).
     """
 
     name = "tvlqr"
 
-    def __init__(self, reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF) -> None:
+    def __init__(self, reference: Reference, Q=DEFAULT_Q, R=None, Qf=DEFAULT_QF) -> None:
         self.gains = riccati_gains(reference, Q, R, Qf)
         super().__init__(reference)
 
