@@ -34,32 +34,34 @@ from .reference import Reference
 DEFAULT_Q = (2000.0, 2000.0, 2000.0, 1.0, 1.0, 1.0)
 """Diagonal of Q on (q1, q2, q3 [rad or m], q1dot, q2dot, q3dot [rad/s or m/s]).
 
-Chosen with :data:`R_RELATIVE` by measurement at 1 kHz on the benchmark plant of
-:mod:`cpopt.tracking.robustness` (20 Monte Carlo plants on each of the twelve bundled plans,
-Qf = Q; the README has the figures). Mean Monte Carlo success over the twelve plans:
+Chosen with :data:`R_RELATIVE` and :data:`DEFAULT_QF` by measurement at 1 kHz on the benchmark
+plant of :mod:`cpopt.tracking.robustness`, 20 Monte Carlo plants on each of the twelve bundled
+plans (noisy, partial figures: +-0.1 per plan). Mean Monte Carlo success:
 
-* Q = 100 on positions, 1 on velocities with the former absolute R = 3e-5 on both torques:
-  0.67 (0.25 to 1.0); gains alone barely move it: 10 times the position weights, a position
-  weight of 1000 on the passive joint, R = 1e-5, all within 0.05 of it on the worst plans;
-* position weights 2000 with R_RELATIVE = 0.2 (the default): 0.77 (0.35 to 1.0), best on the
-  transfers (paper_transfer 0.40 -> 0.65);
-* position weights 5000 with R_RELATIVE = 0.5 (a lower velocity weight relative to R): 0.78,
-  better on the swing-ups (paper_swing_up 0.85, prr_swing_up 0.95), worse on the heavy
-  transfers (paper_transfer 0.45, transfer_min_torque 0.50);
-* velocity weights 3 (R_RELATIVE = 0.02), a terminal weight ten times Q, or Qf the
-  infinite-horizon cost at the goal (discrete ARE): worse on every plan tried (a terminal
-  push ends the plan with the joints moving at 0.3 to 1.3 rad/s).
+* the former Q = Qf = (100, 100, 100, 1, 1, 1), R = 3e-5 on both torques: 0.67 (0.25 to 1);
+  weights alone barely moved it: ten times the position weights, 1000 on the passive joint
+  or R = 1e-5 stayed within 0.05 on the worst plans;
+* Q = Qf = (2000, 2000, 2000, 1, 1, 1), R_RELATIVE = 0.2 (the defaults): 0.87 (0.30 to 1);
+  with the same Q but Qf left at the former value 0.77, so the terminal weight matters;
+* around it, on the weakest plans: Qf = 5000 on positions, velocity weights 2 in Q or 10 and
+  50 in Qf, position weights 500: each equal or worse; Qf the infinite-horizon cost at the
+  goal (discrete ARE): 0.15 to 0.25 (the arm reaches T still moving);
+* R_RELATIVE = 1 (the same Q): half the torque noise, 0.05 less success on four of the
+  weakest plans.
 
-The failures that remain are not the gains': on paper_transfer, varying only the friction
-or the masses of links 1 and 2 within +-10 % leaves every run a success; varying the lengths
-of links 1 and 2, or link 3's mass, centre of mass and inertia, makes the plan no motion of
-the real arm (the passive link swings otherwise), and at T the transient has not died out.
+The price of these gains is noise: on the benchmark's measurement noise (1e-4 rad, 1e-2
+rad/s) the torque's standard deviation about the feed-forward is 10 to 30 % of the plan's
+peak torque (1 to 8 % with the former weights). Where sensors are noisier, raise R.
+
+What still fails is not the gains': on paper_transfer, transfer_min_torque and
+swing_up_torque_limited the motors saturate (without a torque limit: 0.95, 1.0 and 0.95), and
+the minimum-time swing-up rides its torque limits 66 % of the time, leaving feedback nothing.
 """
 R_RELATIVE = 0.2
 """Default torque weight relative to the plan: R_i = R_RELATIVE / (peak |tau_i| of the plan)^2
 (:func:`relative_R`), so that a correction of a given fraction of a joint's peak torque costs
-the same on every arm and joint (the bundled plans' peak torques range from 27 N to 1046 N m;
-one absolute R made the weak joint of the heavy transfer arm as cheap as its strong one)."""
+the same on every arm and joint (the bundled plans' peak torques range from 26 to 1046, N m
+or N; one absolute R made the weak joint of the heavy transfer arm as cheap as its strong one)."""
 DEFAULT_QF = DEFAULT_Q
 """Diagonal of the terminal weight Qf on the joint state (see :data:`DEFAULT_Q`)."""
 
