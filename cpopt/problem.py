@@ -39,7 +39,7 @@ from .plan import GAMMA_ZERO, Node
 from .robot import ARM_KINDS, BRANCHES, G0, Arm, Link
 from .safe_yaml import YamlInputError, echo, key_path, read_yaml
 from .tracking.dfl import DEFAULT_POLES
-from .tracking.tvlqr import DEFAULT_Q, DEFAULT_QF, DEFAULT_R
+from .tracking.tvlqr import DEFAULT_Q, DEFAULT_QF
 
 Number = Annotated[float, Field(allow_inf_nan=False)]
 
@@ -300,7 +300,7 @@ class TrackingSpec(_Spec):
     controller: Literal["tvlqr", "dfl"] = "tvlqr"
     rate_hz: Annotated[float, Field(gt=0, le=100000, allow_inf_nan=False)] = 1000.0
     Q: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_Q)
-    R: Pair(Positive) = list(DEFAULT_R)
+    R: Pair(Positive) | None = None  # absent: relative to the plan's peak torques
     Qf: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_QF)
     poles: Annotated[
         list[Annotated[float, Field(lt=0, allow_inf_nan=False)]], Field(min_length=4, max_length=4)

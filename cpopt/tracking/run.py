@@ -11,7 +11,7 @@ from .outcome import Tolerance, TrackingOutcome, final_errors
 from .plant import Plant
 from .reference import Reference, reference
 from .simulation import Noise, simulate_batch
-from .tvlqr import DEFAULT_Q, DEFAULT_QF, DEFAULT_R, TVLQRController
+from .tvlqr import DEFAULT_Q, DEFAULT_QF, TVLQRController
 
 CONTROLLERS = ("tvlqr", "dfl")
 DEFAULT_RATE_HZ = 1000.0
@@ -22,11 +22,12 @@ def make_controller(
     name: str,
     ref: Reference,
     Q=DEFAULT_Q,
-    R=DEFAULT_R,
+    R=None,
     Qf=DEFAULT_QF,
     poles=DEFAULT_POLES,
 ) -> Controller:
-    """A controller by name (``tvlqr`` uses Q, R, Qf; ``dfl`` uses the poles)."""
+    """A controller by name (``tvlqr`` uses Q, R, Qf, R None for the plan-relative default
+    :func:`~cpopt.tracking.tvlqr.relative_R`; ``dfl`` uses the poles)."""
     if name == "tvlqr":
         return TVLQRController(ref, Q, R, Qf)
     if name == "dfl":

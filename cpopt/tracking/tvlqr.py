@@ -1,17 +1,20 @@
-"""Time-varying LQR on the arm's full joint-space dynamics, linearised along the plan.
+"""Time-varying LQR on the arm's full joint-space dynamics, designed for the sampled loop.
 
 With x = (q, qd) (6,) and u = (tau1, tau2), the model's dynamics x' = f(x, u) (the passive
-joint torque-free) are linearised along the reference, A(t) = df/dx, B(t) = df/du (CasADi
-Jacobians at the control instants, linear in between). The Riccati equation
+joint torque-free) are linearised along the reference at each control instant t_k,
+A_k = df/dx, B_k = df/du (CasADi Jacobians), and discretised exactly for the zero-order hold
+of one period h (SciPy's matrix exponential). The discrete Riccati recursion runs backward on
+the control grid (:func:`riccati_gains`) and the law applied at t_k is
 
-    -S' = A^T S + S A - S B R^-1 B^T S + Q,   S(T) = Qf,
+    tau = tau_ff,k - K_k (x_measured - x_ref,k),
 
-is integrated backward with SciPy, and the law applied at instant t_k is
-
-    tau = tau_ff,k - R^-1 B_k^T S(t_k) (x_measured - x_ref,k),
-
-with the plan's torque averaged over the period as feed-forward. Nothing here needs gamma != 0,
-so the same controller tracks flat and collocation plans.
+with the plan's torque averaged over the period as feed-forward tau_ff,k. Designing for the
+hold rather than integrating the continuous Riccati equation and holding its gains is what
+lets the gains be high at 1 kHz: measured on the PRR swing-up with the default weights
+(:data:`DEFAULT_Q`, :func:`relative_R`), the continuous design leaves 6e-4 m of CP error
+on the model itself and the discrete one 9e-6 m; with a terminal weight of 1e4 the held
+continuous gains diverge on 16 of 20 unsaturated plants, the discrete ones on none. Nothing
+here needs gamma != 0, so the same controller tracks flat and collocation plans.
 """
 
 from __future__ import annotations
@@ -20,32 +23,45 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
+from scipy.linalg import expm
 
 from ..dynamics import arm_dynamics
+from ..mapping import mapped
 from ..robot import Arm
 from .controller import Controller
 from .reference import Reference
 
-DEFAULT_Q = (100.0, 100.0, 100.0, 1.0, 1.0, 1.0)
+DEFAULT_Q = (2000.0, 2000.0, 2000.0, 1.0, 1.0, 1.0)
 """Diagonal of Q on (q1, q2, q3 [rad or m], q1dot, q2dot, q3dot [rad/s or m/s]).
 
-Chosen with :data:`DEFAULT_R` by measurement at 1 kHz on six bundled plans (the two paper
-transfers' fast one, the paper's and the PRR swing-ups, the minimum-time, torque-limited and
-minimum-torque-transfer plans) on the benchmark plant of :mod:`cpopt.tracking.robustness`,
-21-step sweeps and 30 Monte Carlo plants each, Qf = Q. Success in sweeps / Monte Carlo:
+Chosen with :data:`R_RELATIVE` and :data:`DEFAULT_QF` by measurement at 1 kHz on the benchmark
+plant of :mod:`cpopt.tracking.robustness`, 20 Monte Carlo plants on each of the twelve bundled
+plans (noisy, partial figures: +-0.1 per plan). Mean Monte Carlo success:
 
-* R = 3e-5 (the default): 0.83-0.92 / 0.23-0.60, every plan followed on the model within
-  2e-5 m;
-* R = 1e-4: 0.81-0.91 / 0.17-0.57; R = 1e-3: 0 % on the heavy transfer arm;
-* R = 1e-5: 0.84-0.93 / 0.27-0.70, but too fast for a 1 kHz hold on the PRR swing-up
-  (1e-3 m on the model), as are Q = 1000 on positions with 10 on velocities (2e-2 m) and a
-  velocity weight of 3 (2e-3 to 5e-3 m);
-* a terminal weight 100 times Q helps the paper's swing-up and hurts the minimum-time and
-  torque-limited plans (0.03 and 0.13 in Monte Carlo).
+* the former Q = Qf = (100, 100, 100, 1, 1, 1), R = 3e-5 on both torques: 0.67 (0.25 to 1);
+  weights alone barely moved it: ten times the position weights, 1000 on the passive joint
+  or R = 1e-5 stayed within 0.05 on the worst plans;
+* Q = Qf = (2000, 2000, 2000, 1, 1, 1), R_RELATIVE = 0.2 (the defaults): 0.87 (0.30 to 1);
+  with the same Q but Qf left at the former value 0.77, so the terminal weight matters;
+* around it, on the weakest plans: Qf = 5000 on positions, velocity weights 2 in Q or 10 and
+  50 in Qf, position weights 500: each equal or worse; Qf the infinite-horizon cost at the
+  goal (discrete ARE): 0.15 to 0.25 (the arm reaches T still moving);
+* R_RELATIVE = 1 (the same Q): half the torque noise, 0.05 less success on four of the
+  weakest plans.
+
+The price of these gains is noise: on the benchmark's measurement noise (1e-4 rad, 1e-2
+rad/s) the torque's standard deviation about the feed-forward is 10 to 30 % of the plan's
+peak torque (1 to 8 % with the former weights). Where sensors are noisier, raise R.
+
+What still fails is not the gains': on paper_transfer, transfer_min_torque and
+swing_up_torque_limited the motors saturate (without a torque limit: 0.95, 1.0 and 0.95), and
+the minimum-time swing-up rides its torque limits 66 % of the time, leaving feedback nothing.
 """
-DEFAULT_R = (3e-5, 3e-5)
-"""Diagonal of R on (tau1, tau2) [1/(N m)^2 or 1/N^2] (see :data:`DEFAULT_Q`)."""
+R_RELATIVE = 0.2
+"""Default torque weight relative to the plan: R_i = R_RELATIVE / (peak |tau_i| of the plan)^2
+(:func:`relative_R`), so that a correction of a given fraction of a joint's peak torque costs
+the same on every arm and joint (the bundled plans' peak torques range from 26 to 1046, N m
+or N; one absolute R made the weak joint of the heavy transfer arm as cheap as its strong one)."""
 DEFAULT_QF = DEFAULT_Q
 """Diagonal of the terminal weight Qf on the joint state (see :data:`DEFAULT_Q`)."""
 
@@ -66,48 +82,60 @@ def _weights(values, size: int, name: str) -> np.ndarray:
     return np.diag(w)
 
 
-def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF) -> np.ndarray:
-    """Feedback gains R^-1 B^T S at every control instant (n + 1, 2, 6).
+def relative_R(reference: Reference, relative: float = R_RELATIVE) -> tuple[float, float]:
+    """The default R: ``relative`` over the square of the plan's peak |torque| of each joint
+    [1/(N m)^2 or 1/N^2]; a joint the plan never loads is weighted as if its peak were 1."""
+    peak = np.abs(reference.tau).max(axis=0)
+    peak = np.where(peak > 0, peak, 1.0)
+    return tuple(float(v) for v in relative / peak**2)
+
+
+def discrete_linearization(reference: Reference) -> tuple[np.ndarray, np.ndarray]:
+    """Ad (n, 6, 6) and Bd (n, 6, 2): the model linearised at each instant t_k (k < n) and
+    discretised exactly for a zero-order hold over the period (matrix exponential of
+    [[A_k, B_k], [0, 0]] h)."""
+    n = reference.steps
+    A, B = mapped(linearization(reference.arm), n)(reference.x[:-1].T, reference.tau[:-1].T)
+    M = np.zeros((n, 8, 8))
+    M[:, :6, :6] = np.asarray(A).reshape(6, n, 6).transpose(1, 0, 2)
+    M[:, :6, 6:] = np.asarray(B).reshape(6, n, 2).transpose(1, 0, 2)
+    E = expm(M * reference.period)
+    return E[:, :6, :6], E[:, :6, 6:]
+
+
+def riccati_gains(reference: Reference, Q=DEFAULT_Q, R=None, Qf=DEFAULT_QF) -> np.ndarray:
+    """Feedback gains K_k at every control instant (n + 1, 2, 6); the last repeats K_{n-1}.
+
+    The discrete Riccati recursion on the zero-order-hold model of :func:`discrete_linearization`
+    with the stage cost weighted by the period h, so that Q and R keep their continuous-time
+    meaning:
+
+        S_n = Qf,   K_k = (R h + Bd^T S_{k+1} Bd)^-1 Bd^T S_{k+1} Ad,
+        S_k = Q h + Ad^T S_{k+1} (Ad - Bd K_k).
 
     Parameters
     ----------
     reference : Reference
         The plan on the control grid.
     Q, R, Qf : sequence of float
-        Diagonals of the state weight (6), input weight (2, > 0) and terminal weight (6).
+        Diagonals of the state weight (6), input weight (2, > 0; None: :func:`relative_R`)
+        and terminal weight (6).
     """
     Q, Qf = _weights(Q, 6, "Q"), _weights(Qf, 6, "Qf")
-    R = _weights(R, 2, "R")
+    R = _weights(relative_R(reference) if R is None else R, 2, "R")
     if np.any(np.diag(R) <= 0):
         raise ValueError(f"R: the input weights must be > 0, got {np.diag(R).tolist()}")
-    n = reference.t.size
-    f = linearization(reference.arm).map(n)
-    A, B = (np.asarray(m) for m in f(reference.x.T, reference.tau.T))
-    A = A.reshape(6, n, 6).transpose(1, 0, 2)
-    B = B.reshape(6, n, 2).transpose(1, 0, 2)
-    R_inv = np.linalg.inv(R)
-    t = reference.t
+    Ad, Bd = discrete_linearization(reference)
     h = reference.period
-
-    def rhs(s, S_flat):
-        # s = t_end - t runs forward; linear interpolation between the instants
-        tt = t[-1] - s
-        k = int(np.clip((tt - t[0]) // h, 0, n - 2))
-        w = np.clip((tt - t[k]) / h, 0.0, 1.0)
-        Ak = (1 - w) * A[k] + w * A[k + 1]
-        Bk = (1 - w) * B[k] + w * B[k + 1]
-        S = S_flat.reshape(6, 6)
-        dS = Ak.T @ S + S @ Ak - S @ Bk @ R_inv @ Bk.T @ S + Q
-        return dS.ravel()
-
-    span = t[-1] - t[0]
-    sol = solve_ivp(rhs, (0.0, span), Qf.ravel(), method="RK45", t_eval=span - (t - t[0])[::-1],
-                    rtol=1e-6, atol=1e-8, max_step=max(h, span / 50))  # fmt: skip
-    if not sol.success:
-        raise RuntimeError(f"the Riccati equation failed to integrate: {sol.message}")
-    S = sol.y.T[::-1].reshape(n, 6, 6)
-    S = (S + S.transpose(0, 2, 1)) / 2
-    return np.einsum("ij,nkj,nkl->nil", R_inv, B, S)
+    gains = np.zeros((reference.steps + 1, 2, 6))
+    S = Qf
+    for k in range(reference.steps - 1, -1, -1):
+        BtS = Bd[k].T @ S
+        gains[k] = np.linalg.solve(R * h + BtS @ Bd[k], BtS @ Ad[k])
+        S = Q * h + Ad[k].T @ S @ (Ad[k] - Bd[k] @ gains[k])
+        S = (S + S.T) / 2  # symmetric against round-off over thousands of steps
+    gains[-1] = gains[-2]
+    return gains
 
 
 class TVLQRController(Controller):
@@ -118,12 +146,12 @@ class TVLQRController(Controller):
     reference : Reference
         The plan on the control grid.
     Q, R, Qf : sequence of float
-        Diagonals of the weights (see :func:`riccati_gains`).
+        Diagonals of the weights (see :func:`riccati_gains`; R None: :func:`relative_R`).
     """
 
     name = "tvlqr"
 
-    def __init__(self, reference: Reference, Q=DEFAULT_Q, R=DEFAULT_R, Qf=DEFAULT_QF) -> None:
+    def __init__(self, reference: Reference, Q=DEFAULT_Q, R=None, Qf=DEFAULT_QF) -> None:
         self.gains = riccati_gains(reference, Q, R, Qf)
         super().__init__(reference)
 
