@@ -180,6 +180,44 @@ BAD = [
     ),
     ("gamma zero", GOOD.replace("theta_deg: 90}", "theta_deg: 0}", 1), "motion.start.xi", "gamma"),
     ("gamma sign change", GOOD.replace("xi: 0.5}", "xi: -20}"), "motion.via[0].xi", "changes sign"),
+    (
+        "gamma zero after a xi reset",
+        GOOD.replace("xi: 0.5}", "xi: 0.5, xi_after: -9.81}"),
+        "motion.via[0].xi_after",
+        "singular",
+    ),
+    (
+        "gamma sign change after a xi reset",
+        GOOD.replace("xi: 0.5}", "xi: 0.5, xi_after: -20}"),
+        "motion.goal.xi",
+        "optimizer.gamma_switches",
+    ),
+    (
+        "gamma sign against a fixed gamma",
+        GOOD + "planner: optimize\noptimizer: {gamma_sign: [positive, negative]}\n",
+        "optimizer.gamma_sign[1]",
+        "fixes gamma = 10.3",
+    ),
+    (
+        "no switches",
+        GOOD.replace("x: 1.75, y: 1.0, theta_deg: 90}", "x: 1.75, y: 1.0, theta_deg: -90}")
+        + "planner: optimize\noptimizer: {gamma_switches: 0}\n",
+        "motion.goal.xi",
+        "changes sign in phase 2",
+    ),
+    (
+        "too few switches",
+        GOOD.replace("theta_deg: 90, xi: 0.5}", "theta_deg: -90}")
+        + "planner: optimize\noptimizer: {gamma_switches: 1}\n",
+        "optimizer.gamma_switches",
+        "2 phases",
+    ),
+    (
+        "switches not a count",
+        GOOD + "planner: optimize\noptimizer: {gamma_switches: some}\n",
+        "optimizer.gamma_switches",
+        "'auto'",
+    ),
     ("via time outside", GOOD.replace("t: 0.5", "t: 1.5"), "motion.via[0].t", "(0, 1)"),
     ("via time zero", GOOD.replace("t: 0.5", "t: 0.0"), "motion.via[0].t", "inside"),
     (

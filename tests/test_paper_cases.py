@@ -118,6 +118,37 @@ def test_eta_reset_at_via_state_is_verified():
     assert traj.z[i, 7] - traj.z[i - 1, 7] == pytest.approx(-15.0, abs=1e-9)
 
 
+def test_xi_reset_switches_the_sign_of_gamma_with_one_torque_step():
+    """Hanging rest (gamma = -g0) to inverted rest (gamma = +g0), both at the holding torque:
+    xi jumps from -10 to +10 m/s^2 at the horizontal via state and gamma with it."""
+    arm = paper_arm((1, 1, 0.5))
+    d = np.radians
+    nodes = [
+        Node(0, 0.75, 1, d(-90)),
+        Node(1, 0.75, 1, 0, xi=-10, xi_after=10),
+        Node(1.6, 0.75, 1, d(90)),
+    ]
+    plan = closed_form(arm, nodes, smooth_torque=True)
+    assert plan.signs == (-1, 1)
+    from cpopt.pipeline import evaluate
+    from cpopt.solver import SolverStats
+
+    sol = evaluate(plan, "xi_reset", SolverStats())
+    assert sol.status == "solved"
+    v = sol.verification
+    assert v.closed_loop.max_cp_error < 1e-8 and v.reduced.max_cp_error < 1e-8
+    assert v.open_loop.final_state_error < 1e-5
+    steps = dict(sol.metrics.torque_jumps)
+    assert steps["start"] < 1e-8 and steps["goal"] < 1e-8
+    # the base acceleration along the link steps by 20 m/s^2, theta'' does not
+    assert steps["via[0]"] == pytest.approx(49.1003, abs=1e-3)
+    assert sol.metrics.reset_torque_jump == sol.metrics.max_torque_jump == steps["via[0]"]
+    traj = sol.trajectory
+    i = np.flatnonzero(traj.phase == 1)[0]
+    assert traj.z[i, 6] - traj.z[i - 1, 6] == pytest.approx(20.0, abs=1e-9)
+    assert traj.gamma[i - 1] == pytest.approx(-10.0) and traj.gamma[i] == pytest.approx(10.0)
+
+
 def test_single_phase_swing_up_with_equal_x_is_refused():
     """The paper's remark: x_s = x_g makes y1 constant and the plan hits gamma = 0."""
     arm = paper_arm((1, 1, 0.5))
