@@ -1060,9 +1060,12 @@ def _check_gamma(spec, arm, nodes, paths, free, source) -> tuple[list, list]:
 def _refuse_sign_change(spec, arm: Arm, nodes, segment: list[GammaSide], source: str) -> None:
     """Refuse fixed values of gamma of both signs between two xi resets, blaming the odd
     side (or ``arm.gravity``) and saying which xi gives it the others' sign."""
-    values = ", ".join(f"{s.gamma:+.3g} at {s.path.rsplit('.', 1)[0]}" for s in segment)
+    values = ", ".join(
+        f"{s.gamma:+.3g} {'after' if s.after else 'at'} {s.path.rsplit('.', 1)[0]}" for s in segment
+    )
+    where = "over the motion" if len(segment) == len(nodes) else "between xi resets"
     intro = (
-        f"gamma = xi - K thetadot^2 + g0 sin(theta) changes sign over the motion ({values} "
+        f"gamma = xi - K thetadot^2 + g0 sin(theta) changes sign {where} ({values} "
         "m/s^2), so it vanishes in between; it keeps one sign where xi is not reset (it is "
         "continuous at via states)"
     )
@@ -1082,7 +1085,8 @@ def _refuse_sign_change(spec, arm: Arm, nodes, segment: list[GammaSide], source:
     raise ProblemError(
         source,
         odd.path,
-        f"{intro}. Here it has the sign of the fewer nodes: xi {'>=' if sign > 0 else '<='} "
+        f"{intro}. Here it has the sign of the fewer nodes: {odd.path.rsplit('.', 1)[1]} "
+        f"{'>=' if sign > 0 else '<='} "
         f"{xi:.4g} m/s^2 gives it the others' sign with |gamma| >= {margin:g}{hint}",
     )
 
@@ -1138,7 +1142,6 @@ def _check_signs(o: OptimizerSpec, sides: tuple[list, list], source: str) -> Non
                 "is not reset, so gamma keeps its sign there; give the same sign, a xi reset "
                 "(xi_after) or optimizer.gamma_switches",
             )
-
 
 
 def parse_problem(data, source: str = "<python>", name: str | None = None) -> Problem:
