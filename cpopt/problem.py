@@ -386,6 +386,12 @@ class Problem:
         """Every node value by name in SI units (free values at their initial guess)."""
         return node_values(self.nodes)
 
+    @cached_property
+    def gamma_sides(self) -> tuple[list[GammaSide], list[GammaSide]]:
+        """gamma on arrival at each node and on departure from it (:func:`gamma_sides`)."""
+        paths = [f"motion.{name}" for name in node_names(len(self.nodes))]
+        return gamma_sides(self.arm, self.nodes, paths, self.free)
+
     @property
     def planner(self) -> str:
         """Planner to run: ``closed_form`` or ``optimize``."""
@@ -1215,4 +1221,14 @@ def bundled_problems() -> list[Path]:
     return []
 
 
-__all__ = ["ARM_KINDS", "Problem", "ProblemError", "load_problem", "parse_problem"]
+__all__ = [
+    "ARM_KINDS",
+    "MAX_SWITCHES",
+    "GammaSide",
+    "Problem",
+    "ProblemError",
+    "gamma_segments",
+    "gamma_sides",
+    "load_problem",
+    "parse_problem",
+]

@@ -150,7 +150,8 @@ def test_solver_is_reused_for_the_same_structure(optimized):
     data["motion"]["goal"]["x"] = 1.6  # other fixed values, same structure
     other = parse_problem(data)
     first = load_problem(PROBLEMS / "transfer_min_torque.yaml")
-    assert build(other, 1) is build(first, 1)  # one solver: fixed values are parameters
+    signs = (1,) * (len(first.nodes) - 1)
+    assert build(other, signs) is build(first, signs)  # one solver: fixed values are parameters
     again = optimize(other)
     assert again.status == "solved"
 
@@ -167,7 +168,9 @@ def test_quadrature_check_refines_pieces_that_alias(monkeypatch):
     problem = parse_problem(data)
     monkeypatch.setattr(flatopt, "MAX_REFINEMENTS", 0)
     once = optimize(problem)
-    assert quadrature_gaps(problem, once.plan, build(problem, -1)) == [{2, 3}]
+    assert quadrature_gaps(
+        problem, once.plan, build(problem, (-1,) * (len(problem.nodes) - 1))
+    ) == [{2, 3}]
     monkeypatch.undo()
     refined = optimize(problem)
     assert refined.status == "solved" and refined.solver.details.refinements == 1

@@ -1,8 +1,10 @@
 """The flat optimizer's initial guess: the paper's closed form through the nodes, projected onto
 the B-spline basis.
 
-Where a node's guessed values give gamma the other sign than the one being solved for and its xi
-is free, xi is moved to the sign's side (gamma_min + 2 m/s^2 past zero). Where the closed form
+Where a node's guessed values give gamma the other sign than the phase's being solved for and its
+xi (or, after a via state's reset, xi_after) is free, it is moved to the sign's side
+(gamma_min + 2 m/s^2 past zero). A search for switches of the sign starts each new pattern from
+the previous solution instead (``guess``). Where the closed form
 is singular (e.g. a swing-up with x_s = x_g, the paper's remark), its curve is used anyway with a
 lateral CP excursion K sin^2(pi s) added, which moves the guess off gamma = 0.
 """
@@ -12,27 +14,31 @@ from __future__ import annotations
 import numpy as np
 
 from ..bspline import SplineBasis, fit
-from ..nodes import node_names, nodes_from_values
+from ..nodes import has_reset, node_names, nodes_from_values
 from ..plan import CPPlan, SingularPlanError, closed_form
 from ..problem import Problem
 from .path_timing import initial_blocks, timing_guess, unpack
 from .transcribe import FlatNLP, coefficient_count
 
 
-def initial_plan(problem: Problem, sign: int) -> CPPlan:
+def initial_plan(problem: Problem, signs: tuple[int, ...]) -> CPPlan:
     """The closed-form plan through the nodes at their guessed values, xi moved where needed."""
     arm = problem.arm
     K, g0 = arm.K, arm.gravity
     gamma_min = problem.spec.optimizer.gamma_min
     values = problem.values
     xis = {}
-    for name in node_names(len(problem.nodes)):
-        xi = values[f"{name}.xi"]
+    for i, name in enumerate(node_names(len(problem.nodes))):
         thetadot, theta = values[f"{name}.thetadot_deg"], values[f"{name}.theta_deg"]
-        gamma = xi - K * thetadot**2 + g0 * np.sin(theta)
-        if sign * gamma < gamma_min and f"{name}.xi" in problem.free:
-            xi += sign * (gamma_min + 2.0) - gamma
-        xis[name] = xi
+        sides = [("xi", name, signs[max(i - 1, 0)])]
+        if name.startswith("via") and has_reset(problem.nodes[i], name, "xi", problem.free):
+            sides.append(("xi_after", f"{name}.xi_after", signs[i]))
+        for field, key, sign in sides:
+            xi = values[f"{name}.{field}"]
+            gamma = xi - K * thetadot**2 + g0 * np.sin(theta)
+            if sign * gamma < gamma_min and f"{name}.{field}" in problem.free:
+                xi += sign * (gamma_min + 2.0) - gamma
+            xis[key] = xi
     nodes = nodes_from_values(values, len(problem.nodes), xis)
     try:
         return closed_form(arm, nodes)
@@ -64,21 +70,59 @@ def spline_coefficients(problem: Problem, plan: CPPlan) -> list[np.ndarray]:
     return coefficients
 
 
-def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
-    """The whole initial decision vector: core variables and the lifted samples they imply
-    (a path-timing problem starts from its file's control points and a smooth timing law)."""
+def guided_coefficients(nlp: FlatNLP, problem: Problem, plan: CPPlan, guess: CPPlan) -> list:
+    """Per phase, the guess's CP over the phase's time projected onto the B-spline basis around
+    the boundary coefficients the node values fix (so the two join without a spike)."""
     o = problem.spec.optimizer
-    plan = initial_plan(problem, sign)
+    basis = SplineBasis(o.degree, coefficient_count(o))
+    p = nlp.parameters(problem.values)
+    zeros = [np.zeros((coefficient_count(o), 2))] * len(plan.phases)
+    outs = nlp.unpack(nlp.complete(_core(nlp, problem, plan, zeros, {}), p), p)
+    fixed = [np.array(outs[1 + k]) for k in range(len(plan.phases))]
+    for block in nlp.layout.blocks:
+        if block.kind == "coefficients":
+            fixed[block.phase][block.rows[0] : block.rows[1]] = np.nan
+    curve = guess.cp_curve()
+    return [
+        fit(basis, curve, fixed=C, window=(ph.curve.t0, ph.curve.t1))
+        for ph, C in zip(plan.phases, fixed, strict=True)
+    ]
+
+
+def initial_guess(
+    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], guess: CPPlan | None = None
+) -> np.ndarray:
+    """The whole initial decision vector: core variables and the lifted samples they imply
+    (a path-timing problem starts from its file's control points and a smooth timing law).
+
+    ``guess``, a plan of the same motion (e.g. the solution before a switch was added), gives
+    the CP curves to start from instead of the closed form's; the node values are the
+    problem's either way.
+    """
+    o = problem.spec.optimizer
+    plan = initial_plan(problem, signs)
     if o.curve == "path_timing":
         blocks, coefficients = initial_blocks(problem), []
+    elif guess is not None:
+        blocks, coefficients = {}, guided_coefficients(nlp, problem, plan, guess)
     else:
         blocks, coefficients = {}, spline_coefficients(problem, plan)
+    p = nlp.parameters(problem.values)
+    x = nlp.complete(_core(nlp, problem, plan, coefficients, blocks), p)
+    return x if o.curve != "path_timing" else _joined_timing(nlp, problem, x, p)
+
+
+def _core(nlp: FlatNLP, problem: Problem, plan: CPPlan, coefficients: list, blocks: dict):
+    """The core decision variables: node values (xi as the initial plan moved it), zero
+    compensator inputs, the margin at gamma_min, the coefficients and path blocks."""
+    o = problem.spec.optimizer
     node_index = {name: i for i, name in enumerate(node_names(len(plan.nodes)))}
     values = problem.values
     core = []
     for block in nlp.layout.blocks:
-        if block.kind == "value" and block.name.endswith(".xi"):
-            core.append(plan.nodes[node_index[block.name.split(".")[0]]].xi)
+        if block.kind == "value" and block.name.endswith((".xi", ".xi_after")):
+            node = plan.nodes[node_index[block.name.split(".")[0]]]
+            core.append(node.state(after=block.name.endswith("after"))[6])
         elif block.kind == "value":
             core.append(values[block.name])
         elif block.kind == "alpha":
@@ -93,9 +137,7 @@ def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
         else:  # timing
             lo, hi = block.rows
             core.extend(blocks[f"phase[{block.phase}].timing"][lo:hi])
-    p = nlp.parameters(values)
-    x = nlp.complete(np.asarray(core, float), p)
-    return x if o.curve != "path_timing" else _joined_timing(nlp, problem, x, p)
+    return np.asarray(core, float)
 
 
 def _joined_timing(nlp: FlatNLP, problem: Problem, x: np.ndarray, p: np.ndarray) -> np.ndarray:
