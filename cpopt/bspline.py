@@ -85,32 +85,9 @@ def _matrix(degree: int, count: int, s: tuple, order: int) -> np.ndarray:
     return np.asarray(spline(np.asarray(s, float)))
 
 
-def fit(
-    basis: SplineBasis,
-    curve: PiecewisePolynomial,
-    samples: int = 200,
-    fixed: np.ndarray | None = None,
-    window: tuple[float, float] | None = None,
-) -> np.ndarray:
-    """Least-squares projection of a curve onto the basis (coefficients (count, 2)).
-
-    ``window`` (t0, t1) [s] projects that stretch of the curve (default: all of it).
-    ``fixed`` (count, 2) holds coefficients that are given, NaN where they are to be fitted:
-    the fit then chooses only those, around the given ones, and matches the curve's second
-    derivative (scaled to the window's duration) rather than its values, so that a few
-    coefficients fixed by boundary conditions join the fitted ones smoothly.
-    """
-    t0, t1 = window if window is not None else (curve.t0, curve.t1)
+def fit(basis: SplineBasis, curve: PiecewisePolynomial, samples: int = 200) -> np.ndarray:
+    """Least-squares projection of a curve onto the basis (coefficients (count, 2))."""
     s = np.linspace(0.0, 1.0, samples)
-    h = t1 - t0
-    D = curve.derivatives(t0 + s * h, 2)
-    if fixed is None:
-        coeffs, *_ = np.linalg.lstsq(basis.matrix(s, 0), D[:, :, 0], rcond=None)
-        return coeffs
-    rows = basis.matrix(s, 2)
-    target = D[:, :, 2] * h**2
-    free = np.isnan(fixed[:, 0])
-    known = np.where(np.isnan(fixed), 0.0, fixed)
-    out = known.copy()
-    out[free], *_ = np.linalg.lstsq(rows[:, free], target - rows @ known, rcond=None)
-    return out
+    values = curve.derivatives(curve.t0 + s * (curve.t1 - curve.t0), 0)[:, :, 0]
+    coeffs, *_ = np.linalg.lstsq(basis.matrix(s, 0), values, rcond=None)
+    return coeffs

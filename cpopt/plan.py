@@ -143,14 +143,6 @@ class CPPlan:
         """The sign of gamma of each phase."""
         return tuple(ph.sigma for ph in self.phases)
 
-    def cp_curve(self) -> PiecewisePolynomial:
-        """The CP over the whole plan as one piecewise polynomial (the phases' pieces joined;
-        at a via state it takes the next phase's values)."""
-        breaks = [self.phases[0].curve.breaks[:1]]
-        breaks += [ph.curve.breaks[1:] for ph in self.phases]
-        coeffs = np.concatenate([ph.curve.coeffs for ph in self.phases])
-        return PiecewisePolynomial(np.concatenate(breaks), coeffs)
-
     def min_abs_gamma(self) -> tuple[float, float]:
         """Certified minimum of |gamma| over the whole plan [m/s^2] and where it occurs [s].
 

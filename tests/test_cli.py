@@ -213,6 +213,18 @@ BAD = [
         "change sign 2 times",
     ),
     (
+        "switches with path_timing",
+        GOOD + "planner: optimize\noptimizer: {gamma_switches: auto, curve: path_timing}\n",
+        "optimizer.gamma_switches",
+        "path_timing",
+    ),
+    (
+        "switches with the closed form",
+        GOOD + "optimizer: {gamma_switches: 1}\n",
+        "optimizer.gamma_switches",
+        "planner: optimize",
+    ),
+    (
         "switches not a count",
         GOOD + "planner: optimize\noptimizer: {gamma_switches: some}\n",
         "optimizer.gamma_switches",
@@ -398,3 +410,15 @@ def test_a_file_name_becomes_a_safe_problem_name(tmp_path, capsys):
     assert "(my_problem__v2_: RRR arm" in capsys.readouterr().out
     unnamed = yaml.safe_load(GOOD.replace("name: good\n", ""))
     assert parse_problem(unnamed, name="../up").name == "_up"  # one folder, never a path
+
+
+def test_a_xi_reset_makes_a_sign_change_between_phases_legal():
+    """gamma +10.31 on arrival at the via state, -10.19 after its xi reset, -9.81 at the goal
+    (theta = -90 deg): each phase keeps one sign, so the file is accepted."""
+    text = GOOD.replace("xi: 0.5}", "xi: 0.5, xi_after: -20}").replace(
+        "x: 1.75, y: 1.0, theta_deg: 90}", "x: 1.75, y: 1.0, theta_deg: -90}"
+    )
+    problem = parse_problem(yaml.safe_load(text))
+    arrive, leave = problem.gamma_sides
+    assert [round(s.gamma, 2) for s in arrive] == [9.81, 10.31, -9.81]
+    assert leave[1].gamma == pytest.approx(-10.19) and leave[1].path == "motion.via[0].xi_after"

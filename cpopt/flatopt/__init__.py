@@ -85,7 +85,8 @@ class SignAttempt:
             "sign", "signs", "switch_times", "status", "ipopt_status", "objective",
             "cost_terms", "iterations", "certified_min_abs_gamma", "refinements",
         )  # fmt: skip
-        return {k: getattr(self, k) for k in keys}
+        out = {k: getattr(self, k) for k in keys}
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
 
 @dataclass(frozen=True)
@@ -218,7 +219,6 @@ def solve_for_signs(
     problem: Problem,
     signs: tuple[int, ...],
     switches: tuple[int, ...] = (),
-    guess: CPPlan | None = None,
 ) -> SignAttempt:
     """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
     the margin is certified.
@@ -231,8 +231,6 @@ def solve_for_signs(
         The sign of gamma of each phase, +1 or -1.
     switches : tuple of int
         The indices of the nodes the optimizer added (:func:`cpopt.nodes.node_names`).
-    guess : CPPlan, optional
-        A plan of the same motion to start from instead of the closed form.
     """
     grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
@@ -243,7 +241,7 @@ def solve_for_signs(
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
-        x0 = initial_guess(nlp, problem, signs, guess) if x0 is None else nlp.complete(x0, p)
+        x0 = initial_guess(nlp, problem, signs) if x0 is None else nlp.complete(x0, p)
         lbx, ubx = _bounds(nlp, problem)
         run = run_nlp(nlp.solver, x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg)
         solve_time += run.solve_time_s

@@ -3,8 +3,7 @@ the B-spline basis.
 
 Where a node's guessed values give gamma the other sign than the phase's being solved for and its
 xi (or, after a via state's reset, xi_after) is free, it is moved to the sign's side
-(gamma_min + 2 m/s^2 past zero). A search for switches of the sign starts each new pattern from
-the previous solution instead (``guess``). Where the closed form
+(gamma_min + 2 m/s^2 past zero). Where the closed form
 is singular (e.g. a swing-up with x_s = x_g, the paper's remark), its curve is used anyway with a
 lateral CP excursion K sin^2(pi s) added, which moves the guess off gamma = 0.
 """
@@ -70,41 +69,13 @@ def spline_coefficients(problem: Problem, plan: CPPlan) -> list[np.ndarray]:
     return coefficients
 
 
-def guided_coefficients(nlp: FlatNLP, problem: Problem, plan: CPPlan, guess: CPPlan) -> list:
-    """Per phase, the guess's CP over the phase's time projected onto the B-spline basis around
-    the boundary coefficients the node values fix (so the two join without a spike)."""
-    o = problem.spec.optimizer
-    basis = SplineBasis(o.degree, coefficient_count(o))
-    p = nlp.parameters(problem.values)
-    zeros = [np.zeros((coefficient_count(o), 2))] * len(plan.phases)
-    outs = nlp.unpack(nlp.complete(_core(nlp, problem, plan, zeros, {}), p), p)
-    fixed = [np.array(outs[1 + k]) for k in range(len(plan.phases))]
-    for block in nlp.layout.blocks:
-        if block.kind == "coefficients":
-            fixed[block.phase][block.rows[0] : block.rows[1]] = np.nan
-    curve = guess.cp_curve()
-    return [
-        fit(basis, curve, fixed=C, window=(ph.curve.t0, ph.curve.t1))
-        for ph, C in zip(plan.phases, fixed, strict=True)
-    ]
-
-
-def initial_guess(
-    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], guess: CPPlan | None = None
-) -> np.ndarray:
+def initial_guess(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...]) -> np.ndarray:
     """The whole initial decision vector: core variables and the lifted samples they imply
-    (a path-timing problem starts from its file's control points and a smooth timing law).
-
-    ``guess``, a plan of the same motion (e.g. the solution before a switch was added), gives
-    the CP curves to start from instead of the closed form's; the node values are the
-    problem's either way.
-    """
+    (a path-timing problem starts from its file's control points and a smooth timing law)."""
     o = problem.spec.optimizer
     plan = initial_plan(problem, signs)
     if o.curve == "path_timing":
         blocks, coefficients = initial_blocks(problem), []
-    elif guess is not None:
-        blocks, coefficients = {}, guided_coefficients(nlp, problem, plan, guess)
     else:
         blocks, coefficients = {}, spline_coefficients(problem, plan)
     p = nlp.parameters(problem.values)
