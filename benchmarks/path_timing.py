@@ -85,8 +85,8 @@ def run(name: str, method: str, problem, repeats: int) -> Row:
 
     solutions = [solve(problem) for _ in range(repeats)]
     first, last = solutions[0], solutions[-1]
-    sign = 1 if last.solver.details.gamma_sign == "positive" else -1
-    nlp = build(problem, sign)  # the first round's NLP, cached by the solve: no new build
+    signs = tuple(1 if s == "positive" else -1 for s in last.solver.details.gamma_signs)
+    nlp = build(problem, signs)  # the first round's NLP, cached by the solve: no new build
     traj = sample(last.plan, per_phase=FINE)
     ratio, excursion = wandering(traj.cp[:, :, 0])
     phases = [wandering(traj.cp[traj.phase == k, :, 0])[1] for k in range(len(last.plan.phases))]

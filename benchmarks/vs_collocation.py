@@ -4,6 +4,10 @@ For each benchmark problem (``benchmarks/problems/``: the paper's T = 1 s transf
 swing-up, minimum torque, gamma_min = 2 m/s^2, no torque-continuity constraint) it solves
 
 * ``flat``: the CP-flat optimizer (B-spline coefficients as in the file),
+* ``flat_switch``: the same with ``gamma_switches: auto`` and ``gamma_sign: auto`` (switches of
+  the sign of gamma at via states that reset xi; collocation without the regularity
+  constraint pins no sign either; at most 500 Ipopt iterations per pattern); its solve time is
+  that of every pattern the search solved,
 * ``collocation``: direct collocation without the regularity constraint,
 * ``collocation_gamma``: direct collocation with ``sign(gamma) gamma >= gamma_min`` at knots,
 * ``fatrop_gamma``: the same constraint, rockit's multiple shooting solved by Fatrop (at the
@@ -22,6 +26,9 @@ reuse the solver; a failed solve is not repeated), and prints
   ``RATIO <problem> solve_time_collocation_gamma_N100/flat=<x>
   cost_flat/collocation_gamma_N200=<y>``
   (``--quick`` runs small sizes and names them in the line instead of N100 and N200);
+* one more line per problem, exactly (one line, split here)
+  ``RATIO_SWITCH <problem> cost_flat_switch/collocation_N200=<y>
+  solve_time_collocation_N100/flat_switch=<x>`` (collocation without the gamma constraint);
 * one more line per problem, exactly (one line, split here)
   ``SPEED <problem> flat_solve=<s> flat_cold=<s> collocation_gamma_N100_solve=<s>
   fatrop_gamma_N100_solve=<s>``: median solve times, and ``flat_cold`` the wall time of the
@@ -67,6 +74,7 @@ class Row:
     status: str
     cold: float = 0.0
     cpu: float = 0.0
+    signs: str = ""
 
     @property
     def median(self) -> float:
@@ -108,7 +116,19 @@ def _timed(solve, repeats: int) -> tuple[list, float, float]:
     return results, walls[0], statistics.median(cpus)
 
 
-def run_flat(problem, repeats: int, label: str) -> Row:
+def with_switches(problem, max_iter: int = 500):
+    """The problem with ``gamma_switches: auto``, no sign of gamma asked and at most
+    ``max_iter`` Ipopt iterations per pattern (``--quick``: 200, a smoke test)."""
+    from cpopt.problem import parse_problem
+
+    data = problem.spec.model_dump()
+    data["optimizer"].update(gamma_switches="auto", gamma_sign=None)
+    # dead ends of the search stop at 500 iterations (its solves needed < 450, measured)
+    data["optimizer"]["solver"]["max_iter"] = max_iter
+    return parse_problem(data, problem.source, problem.name)
+
+
+def run_flat(problem, repeats: int, label: str, method: str = "flat") -> Row:
     """Solve with the flat optimizer ``repeats`` times; measure the last plan."""
     from cpopt.flatopt import optimize
     from cpopt.simulate import simulate_open_loop
@@ -120,7 +140,7 @@ def run_flat(problem, repeats: int, label: str) -> Row:
     cost = metrics(plan, sample(plan, FINE)).torque_sq_integral
     return Row(
         problem.name,
-        "flat",
+        method,
         label,
         first.solver.build_time_s,
         [r.solver.solve_time_s for r in results],
@@ -131,7 +151,15 @@ def run_flat(problem, repeats: int, label: str) -> Row:
         last.status,
         cold,
         cpu,
+        _pattern(last),
     )
+
+
+def _pattern(result) -> str:
+    """The signs of gamma of a flat result's phases and its switch times, in one word."""
+    d = result.solver.details
+    times = ",".join(f"{t:.3f}" for t in d.switch_times)
+    return "/".join(s[:3] for s in d.gamma_signs) + (f"@{times}" if times else "")
 
 
 def with_fatrop(problem):
@@ -196,6 +224,19 @@ def ratio_line(name: str, rows: list[Row], mid: int, large: int) -> str:
     )
 
 
+def ratio_switch_line(name: str, rows: list[Row], mid: int, large: int) -> str:
+    """The RATIO_SWITCH line of one problem: flat with switches against collocation without
+    the gamma constraint."""
+    flat = next(r for r in rows if r.method == "flat_switch")
+    by_size = {r.size: r for r in rows if r.method == "collocation"}
+    cost = flat.cost / by_size[f"N={large}"].cost
+    speed = by_size[f"N={mid}"].median / flat.median
+    return (
+        f"RATIO_SWITCH {name} cost_flat_switch/collocation_N{large}={cost:.4f} "
+        f"solve_time_collocation_N{mid}/flat_switch={speed:.3f}"
+    )
+
+
 def speed_line(name: str, rows: list[Row], mid: int) -> str:
     """The SPEED line of one problem."""
     flat = next(r for r in rows if r.method == "flat")
@@ -229,6 +270,9 @@ def main(argv=None) -> int:
         label = f"{o.coefficients} coef/{o.samples} smp"
         rows.append(run_flat(problem, repeats, label))
         print(format_row(rows[-1]), flush=True)
+        switching = with_switches(problem, 200 if args.quick else 500)
+        rows.append(run_flat(switching, max(1, repeats // 2), label, "flat_switch"))
+        print(format_row(rows[-1]), f"signs {rows[-1].signs}", flush=True)
         for gamma in (False, True):
             for n in sizes:
                 rows.append(run_collocation(problem, n, gamma, repeats))
@@ -258,6 +302,8 @@ def main(argv=None) -> int:
         print(f"  {r.problem:10s} {r.method:18s} {r.size:16s} {r.cpu:8.3f}")
     for name in names:
         print(ratio_line(name, [r for r in rows if r.problem == name], mid, large))
+    for name in names:
+        print(ratio_switch_line(name, [r for r in rows if r.problem == name], mid, large))
     for name in names:
         print(speed_line(name, [r for r in rows if r.problem == name], mid))
     return 0

@@ -5,6 +5,8 @@ A motion passes through ``start``, ``via[0]``, ``via[1]``, ... and ``goal``. A v
 ``<node>.<field>`` with the field as the problem file spells it (``start.theta_deg``,
 ``via[0].eta_after``, ``via[0].t``) or ``duration``. Files give angles in degrees; in code every
 value is SI and in radians, whatever its name says: ``values["start.theta_deg"]`` is radians.
+Via states a planner adds to switch the sign of gamma are named ``switch[0]``, ``switch[1]``,
+... in its results.
 """
 
 from __future__ import annotations
@@ -16,21 +18,34 @@ from .plan import Node
 
 NODE_FIELDS = ("x", "y", "theta_deg", "xdot", "ydot", "thetadot_deg", "xi", "eta")
 """Fields of every node, as the problem file names them."""
-VIA_FIELDS = (*NODE_FIELDS, "eta_after", "t")
-"""Fields of a via state: a node's, the eta reset and the time [s]."""
+VIA_FIELDS = (*NODE_FIELDS, "xi_after", "eta_after", "t")
+"""Fields of a via state: a node's, the xi and eta resets and the time [s]."""
 ANGLE_FIELDS = frozenset({"theta_deg", "thetadot_deg"})
 """Fields given in degrees (deg, deg/s) in files and held in radians in code."""
 GAMMA_FIELDS = ("xi", "theta_deg", "thetadot_deg")
-"""The fields gamma = xi - K thetadot^2 + g0 sin(theta) depends on."""
+"""The fields gamma = xi - K thetadot^2 + g0 sin(theta) depends on (on arrival; after a via
+state's xi reset, ``xi_after`` takes the place of ``xi``)."""
 MIN_PHASE = 0.05
 """Shortest phase [s] a planner may choose when node times are free."""
 
 _NODE_ATTRIBUTE = {"theta_deg": "theta", "thetadot_deg": "thetadot"}
 
 
-def node_names(count: int) -> list[str]:
-    """Names of ``count`` nodes: ``start``, ``via[0]``, ..., ``goal``."""
-    return ["start", *(f"via[{i}]" for i in range(count - 2)), "goal"]
+def node_names(count: int, switches: Sequence[int] = ()) -> list[str]:
+    """Names of ``count`` nodes: ``start``, ``via[0]``, ..., ``goal``.
+
+    ``switches`` are the indices of via states a planner added (``switch[0]``, ...); the other
+    via states keep the numbers the problem file gives them.
+    """
+    names, vias, added = ["start"], 0, 0
+    for i in range(1, count - 1):
+        if i in switches:
+            names.append(f"switch[{added}]")
+            added += 1
+        else:
+            names.append(f"via[{vias}]")
+            vias += 1
+    return [*names, "goal"]
 
 
 def to_si(name: str, value: float) -> float:
@@ -55,7 +70,7 @@ def free_value_names(via_count: int) -> list[str]:
 def node_values(nodes: Sequence[Node]) -> dict[str, float]:
     """Every value of a motion by name, SI units (see the module docstring).
 
-    A via state without an eta reset has ``eta_after`` equal to its ``eta``.
+    A via state without a reset has ``xi_after`` (``eta_after``) equal to its ``xi`` (``eta``).
     """
     out = {"duration": nodes[-1].t - nodes[0].t}
     for name, node in zip(node_names(len(nodes)), nodes, strict=True):
@@ -63,15 +78,20 @@ def node_values(nodes: Sequence[Node]) -> dict[str, float]:
             out[f"{name}.{f}"] = float(getattr(node, _NODE_ATTRIBUTE.get(f, f)))
         if name.startswith("via"):
             out[f"{name}.t"] = float(node.t)
-            after = node.eta if node.eta_after is None else node.eta_after
-            out[f"{name}.eta_after"] = float(after)
+            after = node.state(after=True)
+            out[f"{name}.xi_after"] = float(after[6])
+            out[f"{name}.eta_after"] = float(after[7])
     return out
 
 
 def nodes_from_values(
     values: Mapping[str, float], count: int, xi: Mapping[str, float] | None = None
 ) -> list[Node]:
-    """The nodes a set of values by name (SI units) describes; ``xi`` overrides xi by node."""
+    """The nodes a set of values by name (SI units) describes.
+
+    ``xi`` overrides xi by node name (``start``, ``via[0]``) and xi after a via state's reset
+    by ``via[i].xi_after``.
+    """
     names = node_names(count)
     times = [0.0, *(values[f"{v}.t"] for v in names[1:-1]), values["duration"]]
     nodes = []
@@ -79,15 +99,27 @@ def nodes_from_values(
         fields = {_NODE_ATTRIBUTE.get(f, f): values[f"{name}.{f}"] for f in NODE_FIELDS}
         if xi and name in xi:
             fields["xi"] = xi[name]
-        after = values.get(f"{name}.eta_after")
-        reset = None if after is None or after == fields["eta"] else after
-        nodes.append(Node(t=t, eta_after=reset, **fields))
+        resets = {}
+        for f in ("xi", "eta"):
+            after = values.get(f"{name}.{f}_after")
+            if f == "xi" and xi and f"{name}.xi_after" in xi:
+                after = xi[f"{name}.xi_after"]
+            resets[f"{f}_after"] = None if after is None or after == fields[f] else after
+        nodes.append(Node(t=t, **resets, **fields))
     return nodes
 
 
-def gamma_is_free(node: str, free: Mapping) -> bool:
-    """True when gamma at a node (``start``, ``via[i]``, ``goal``) depends on a freed value."""
-    return any(f"{node}.{f}" in free for f in GAMMA_FIELDS)
+def has_reset(node: Node, name: str, field: str, free: Mapping) -> bool:
+    """True when a via state may reset ``field`` (``xi`` or ``eta``): the file gives
+    ``<field>_after`` or frees it. Otherwise the value after the node is the value on arrival,
+    whether that is fixed or free."""
+    return getattr(node, f"{field}_after") is not None or f"{name}.{field}_after" in free
+
+
+def gamma_is_free(node: str, free: Mapping, xi: str = "xi") -> bool:
+    """True when gamma at a node (``start``, ``via[i]``, ``goal``) depends on a freed value;
+    ``xi="xi_after"`` asks about gamma after a via state's xi reset."""
+    return any(f"{node}.{f}" in free for f in (xi, *GAMMA_FIELDS[1:]))
 
 
 def freed_fields(node: str, free: Mapping, after: bool = False) -> set[str]:
@@ -121,6 +153,7 @@ __all__ = [
     "free_value_names",
     "freed_fields",
     "gamma_is_free",
+    "has_reset",
     "node_names",
     "node_values",
     "nodes_from_values",

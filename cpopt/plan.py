@@ -1,9 +1,11 @@
 """CP plans: phases of CP curves between nodes, and the paper's closed-form planner.
 
 A motion passes through nodes (start, via states, goal) at given times. Each node fixes the
-third link's state and the compensator values (xi, eta); eta may be reset at a via state
-(``eta`` before, ``eta_after`` after). A phase joins two consecutive nodes with one CP curve
-and keeps the sign of gamma fixed.
+third link's state and the compensator values (xi, eta); both may be reset at a via state
+(``xi``, ``eta`` before, ``xi_after``, ``eta_after`` after) while the arm's state stays
+continuous. A phase joins two consecutive nodes with one CP curve and keeps its own sign of
+gamma; a xi reset moves gamma by the same amount, so the phases on either side of it may have
+opposite signs (the torque steps once, there).
 """
 
 from __future__ import annotations
@@ -43,11 +45,14 @@ class Node:
     xdot, ydot, thetadot : float
         Velocities [m/s, m/s, rad/s].
     xi : float
-        Compensator state xi [m/s^2].
+        Compensator state xi [m/s^2] on arrival (and departure unless ``xi_after`` is set).
     eta : float
         Compensator state eta [m/s^3] on arrival (and departure unless ``eta_after`` is set).
     eta_after : float or None
         eta after a reset at this node [m/s^3].
+    xi_after : float or None
+        xi after a reset at this node [m/s^2]: gamma moves by ``xi_after - xi``, so the next
+        phase may take the other sign of gamma.
     alpha : tuple of float or None
         Compensator inputs (alpha1 [m/s^4], alpha2 [m/s^2]) to pin at this node for torque
         continuity (``smooth_torque``); ``None`` leaves the fourth CP derivative free.
@@ -64,13 +69,21 @@ class Node:
     eta: float = 0.0
     eta_after: float | None = None
     alpha: tuple[float, float] | None = None
+    xi_after: float | None = None
 
     def state(self, after: bool = False) -> np.ndarray:
-        """The extended state z = (x, y, theta, xdot, ydot, thetadot, xi, eta) (8,)."""
+        """The extended state z = (x, y, theta, xdot, ydot, thetadot, xi, eta) (8,), on
+        arrival or, with ``after``, after the node's resets of xi and eta."""
+        xi = self.xi_after if (after and self.xi_after is not None) else self.xi
         eta = self.eta_after if (after and self.eta_after is not None) else self.eta
         return np.array(
-            [self.x, self.y, self.theta, self.xdot, self.ydot, self.thetadot, self.xi, eta], float
+            [self.x, self.y, self.theta, self.xdot, self.ydot, self.thetadot, xi, eta], float
         )
+
+    @property
+    def resets_xi(self) -> bool:
+        """True when xi is reset here (``xi_after`` set and different from ``xi``)."""
+        return self.xi_after is not None and self.xi_after != self.xi
 
     @property
     def at_rest(self) -> bool:
@@ -80,7 +93,7 @@ class Node:
 
 @dataclass(frozen=True)
 class Phase:
-    """One phase of a plan: a CP curve on [t0, t1] with a fixed sign of gamma."""
+    """One phase of a plan: a CP curve on [t0, t1] with its own fixed sign of gamma."""
 
     curve: PiecewisePolynomial
     sigma: int
@@ -102,6 +115,10 @@ class CPPlan:
         Which planner made it (``closed_form``, ``optimize``, ...).
     free_values : dict
         Values the planner chose, by name (empty for the closed form).
+    switches : tuple of int
+        Indices in ``nodes`` of the via states a planner added to switch the sign of gamma
+        (named ``switch[j]``, see :func:`cpopt.nodes.node_names`); the other via states are
+        the problem's.
     """
 
     arm: Arm
@@ -109,6 +126,7 @@ class CPPlan:
     phases: tuple[Phase, ...]
     planner: str = "closed_form"
     free_values: dict = field(default_factory=dict)
+    switches: tuple[int, ...] = ()
 
     @property
     def t0(self) -> float:
@@ -119,6 +137,11 @@ class CPPlan:
     def duration(self) -> float:
         """Total duration [s]."""
         return self.nodes[-1].t - self.nodes[0].t
+
+    @property
+    def signs(self) -> tuple[int, ...]:
+        """The sign of gamma of each phase."""
+        return tuple(ph.sigma for ph in self.phases)
 
     def min_abs_gamma(self) -> tuple[float, float]:
         """Certified minimum of |gamma| over the whole plan [m/s^2] and where it occurs [s].
@@ -141,7 +164,8 @@ def _phase_sign(gam_start: float, gam_end: float, index: int) -> int:
         raise SingularPlanError(
             f"phase {index + 1}: gamma changes sign between its nodes (gamma = {gam_start:.4g} "
             f"at its start, {gam_end:.4g} at its end, m/s^2), so it must vanish in between; "
-            "choose xi at the nodes so that gamma keeps one sign"
+            "choose xi at the nodes so that gamma keeps one sign in the phase (a xi reset at "
+            "a via state, xi_after, lets the next phase take the other sign)"
         )
     return int(np.sign(gam_start))
 
@@ -194,7 +218,8 @@ def closed_form(
         False: seventh-degree polynomials matching derivatives 0..3 (the paper). True:
         ninth-degree polynomials that also pin the fourth derivative at every node from the
         node's compensator inputs ``alpha`` (zero by default), so the torque is continuous at
-        via states and equals the holding torque at rest ends with xi = eta = 0.
+        via states (except where xi is reset: it steps there) and equals the holding torque at
+        rest ends with xi = eta = 0.
     check : bool
         Refuse a plan on which gamma vanishes (False only to get a warm start for an
         optimizer, which must move the plan away from the singularity).

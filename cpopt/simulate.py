@@ -8,6 +8,9 @@ open-loop torque replay.
   integrators, ``v = p_d'''' + sum_k k_k (p_d^(k) - p^(k))``, gains by pole placement.
 * ``open_loop``: the plan's nominal torques applied to the full dynamics, no feedback.
 
+The reduced model and the closed loop reset the compensator (xi and eta) at via states as the
+plan does; in the open-loop replay a xi reset shows as the step of the torques there.
+
 The controller may use a nominal arm while the simulated plant is another (model errors).
 """
 
@@ -108,7 +111,8 @@ def simulate_reduced(
     for k, ph in enumerate(plan.phases):
         if k:
             z = z.copy()
-            z[7] = plan.nodes[k].state(after=True)[7]  # the planned eta reset
+            node = plan.nodes[k]
+            z[6:8] += node.state(after=True)[6:8] - node.state()[6:8]  # the planned resets
 
         def rhs(t, x, curve=ph.curve):
             v = curve.derivatives(t, 4)[0, :, 4]
@@ -181,7 +185,8 @@ def simulate_closed_loop(
         if k:
             X = X.copy()
             node = plan.nodes[k]
-            X[7] += node.state(after=True)[7] - node.state()[7]  # the planned eta reset
+            # the planned resets of xi and eta: the compensator jumps, the arm's state does not
+            X[6:8] += node.state(after=True)[6:8] - node.state()[6:8]
 
         def rhs(t, x, curve=ph.curve):
             return np.asarray(f(x, curve.derivatives(t, 4)[0], gains)[0]).ravel()

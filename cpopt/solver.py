@@ -138,6 +138,8 @@ class NlpRun:
         Ipopt iterations.
     solve_time_s : float
         Wall time of the call [s].
+    lam_g : numpy.ndarray
+        The constraints' multipliers, positive where a lower bound binds.
     """
 
     x: np.ndarray
@@ -146,6 +148,7 @@ class NlpRun:
     status: str
     iterations: int
     solve_time_s: float
+    lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def read_stats(stats: Mapping) -> tuple[str, str, int]:
@@ -236,6 +239,7 @@ def run_nlp(
         status=status,
         iterations=iterations,
         solve_time_s=elapsed,
+        lam_g=-np.asarray(solution["lam_g"]).ravel(),
     )
 
 

@@ -9,6 +9,7 @@ import numpy as np
 from . import flat
 from .dynamics import holding_torque, inverse_dynamics
 from .kinematics import inverse_derivatives, inverse_position
+from .nodes import node_names
 from .plan import CPPlan
 
 
@@ -115,8 +116,10 @@ class Metrics:
     max_torque_jump : largest torque step at a phase join, or at a rest start/end against
         the static holding torque of that rest state [N m or N]
     max_passive_residual : largest |passive joint torque| along the samples [N m]
-    torque_jumps : ((where, size), ...) each torque step: ``via[i]`` joins, ``start`` and
-        ``goal`` rest ends [N m or N]
+    torque_jumps : ((where, size), ...) each torque step: ``via[i]`` and ``switch[j]`` joins,
+        ``start`` and ``goal`` rest ends [N m or N]
+    reset_torque_jump : largest torque step at a via state that resets xi (0 without one)
+        [N m or N]
     """
 
     torque_sq_integral: float
@@ -129,6 +132,7 @@ class Metrics:
     max_torque_jump: float
     max_passive_residual: float
     torque_jumps: tuple = ()
+    reset_torque_jump: float = 0.0
 
     def as_dict(self) -> dict:
         """The metrics as a plain dict (JSON-ready)."""
@@ -140,6 +144,7 @@ class Metrics:
             "theta_min_deg": self.theta_min_deg,
             "theta_max_deg": self.theta_max_deg,
             "max_torque_jump": self.max_torque_jump,
+            "reset_torque_jump": self.reset_torque_jump,
             "torque_jumps": dict(self.torque_jumps),
         }
 
@@ -147,15 +152,17 @@ class Metrics:
 def torque_jumps(plan: CPPlan, traj: Trajectory) -> list[tuple[str, float, float]]:
     """Torque steps (where, time [s], size [N m]) at joins and at rest ends.
 
-    At a phase join the step is ``max_i |tau_i(t+) - tau_i(t-)|``; at a start or goal at rest
-    it is the step from (to) the static torque that holds the arm in that state.
+    At a phase join (named as in :func:`cpopt.nodes.node_names`: ``via[i]``, ``switch[j]``) the
+    step is ``max_i |tau_i(t+) - tau_i(t-)|``; at a start or goal at rest it is the step from
+    (to) the static torque that holds the arm in that state.
     """
     jumps = []
+    names = node_names(len(plan.nodes), plan.switches)
     for k in range(1, len(plan.phases)):
         left = np.flatnonzero(traj.phase == k - 1)[-1]
         right = np.flatnonzero(traj.phase == k)[0]
         step = float(np.abs(traj.tau[right] - traj.tau[left]).max())
-        jumps.append((f"via[{k - 1}]", float(traj.t[left]), step))
+        jumps.append((names[k], float(traj.t[left]), step))
     for node, idx, name in ((plan.nodes[0], 0, "start"), (plan.nodes[-1], -1, "goal")):
         if node.at_rest:
             hold = holding_torque(plan.arm, traj.q[idx])
@@ -169,6 +176,8 @@ def metrics(plan: CPPlan, traj: Trajectory) -> Metrics:
     power = np.abs(tau[:, 0] * traj.qd[:, 0]) + np.abs(tau[:, 1] * traj.qd[:, 1])
     gmin, gmin_t = plan.min_abs_gamma()
     jumps = torque_jumps(plan, traj)
+    names = node_names(len(plan.nodes), plan.switches)
+    resets = {name for name, node in zip(names, plan.nodes, strict=True) if node.resets_xi}
     theta_deg = np.degrees(traj.z[:, 2])
     return Metrics(
         torque_sq_integral=float(np.trapezoid((tau**2).sum(axis=1), traj.t)),
@@ -181,4 +190,5 @@ def metrics(plan: CPPlan, traj: Trajectory) -> Metrics:
         max_torque_jump=max((j[2] for j in jumps), default=0.0),
         max_passive_residual=float(np.abs(traj.residual).max()),
         torque_jumps=tuple((where, size) for where, _, size in jumps),
+        reset_torque_jump=max((j[2] for j in jumps if j[0] in resets), default=0.0),
     )

@@ -23,6 +23,8 @@ OPTIMIZED = (
     "transfer_straight_line",
     "transfer_min_time_on_path",
     "swing_up_path_timing",
+    "swing_up_holding",
+    "transfer_switch",
 )
 
 

@@ -180,6 +180,56 @@ BAD = [
     ),
     ("gamma zero", GOOD.replace("theta_deg: 90}", "theta_deg: 0}", 1), "motion.start.xi", "gamma"),
     ("gamma sign change", GOOD.replace("xi: 0.5}", "xi: -20}"), "motion.via[0].xi", "changes sign"),
+    (
+        "gamma zero after a xi reset",
+        GOOD.replace("xi: 0.5}", "xi: 0.5, xi_after: -9.81}"),
+        "motion.via[0].xi_after",
+        "singular",
+    ),
+    (
+        "gamma sign change after a xi reset",
+        GOOD.replace("xi: 0.5}", "xi: 0.5, xi_after: -20}"),
+        "motion.via[0].xi_after",
+        "xi_after >= -7.81",
+    ),
+    (
+        "gamma sign against a fixed gamma",
+        GOOD + "planner: optimize\noptimizer: {gamma_sign: [positive, negative]}\n",
+        "optimizer.gamma_sign[1]",
+        "fixes gamma = 10.3",
+    ),
+    (
+        "no switches",
+        GOOD.replace("x: 1.75, y: 1.0, theta_deg: 90}", "x: 1.75, y: 1.0, theta_deg: -90}")
+        + "planner: optimize\noptimizer: {gamma_switches: 0}\n",
+        "motion.goal.xi",
+        "optimizer.gamma_switches",
+    ),
+    (
+        "too few switches",
+        GOOD.replace("theta_deg: 90, xi: 0.5}", "theta_deg: -90}")
+        + "planner: optimize\noptimizer: {gamma_switches: 1}\n",
+        "optimizer.gamma_switches",
+        "change sign 2 times",
+    ),
+    (
+        "switches with path_timing",
+        GOOD + "planner: optimize\noptimizer: {gamma_switches: auto, curve: path_timing}\n",
+        "optimizer.gamma_switches",
+        "path_timing",
+    ),
+    (
+        "switches with the closed form",
+        GOOD + "optimizer: {gamma_switches: 1}\n",
+        "optimizer.gamma_switches",
+        "planner: optimize",
+    ),
+    (
+        "switches not a count",
+        GOOD + "planner: optimize\noptimizer: {gamma_switches: some}\n",
+        "optimizer.gamma_switches",
+        "'auto'",
+    ),
     ("via time outside", GOOD.replace("t: 0.5", "t: 1.5"), "motion.via[0].t", "(0, 1)"),
     ("via time zero", GOOD.replace("t: 0.5", "t: 0.0"), "motion.via[0].t", "inside"),
     (
@@ -360,3 +410,15 @@ def test_a_file_name_becomes_a_safe_problem_name(tmp_path, capsys):
     assert "(my_problem__v2_: RRR arm" in capsys.readouterr().out
     unnamed = yaml.safe_load(GOOD.replace("name: good\n", ""))
     assert parse_problem(unnamed, name="../up").name == "_up"  # one folder, never a path
+
+
+def test_a_xi_reset_makes_a_sign_change_between_phases_legal():
+    """gamma +10.31 on arrival at the via state, -10.19 after its xi reset, -9.81 at the goal
+    (theta = -90 deg): each phase keeps one sign, so the file is accepted."""
+    text = GOOD.replace("xi: 0.5}", "xi: 0.5, xi_after: -20}").replace(
+        "x: 1.75, y: 1.0, theta_deg: 90}", "x: 1.75, y: 1.0, theta_deg: -90}"
+    )
+    problem = parse_problem(yaml.safe_load(text))
+    arrive, leave = problem.gamma_sides
+    assert [round(s.gamma, 2) for s in arrive] == [9.81, 10.31, -9.81]
+    assert leave[1].gamma == pytest.approx(-10.19) and leave[1].path == "motion.via[0].xi_after"

@@ -109,6 +109,12 @@ def test_readme_commands_run(command, tmp_path):
         )
         _check_lines(
             done.stdout,
+            "RATIO_SWITCH",
+            r"RATIO_SWITCH \w+ cost_flat_switch/collocation_N20=[0-9.]+ "
+            r"solve_time_collocation_N10/flat_switch=[0-9.]+",
+        )
+        _check_lines(
+            done.stdout,
             "SPEED",
             r"SPEED \w+ flat_solve=[0-9.]+ flat_cold=[0-9.]+ "
             r"collocation_gamma_N10_solve=[0-9.]+ fatrop_gamma_N10_solve=[0-9.]+",

@@ -150,7 +150,8 @@ def test_solver_is_reused_for_the_same_structure(optimized):
     data["motion"]["goal"]["x"] = 1.6  # other fixed values, same structure
     other = parse_problem(data)
     first = load_problem(PROBLEMS / "transfer_min_torque.yaml")
-    assert build(other, 1) is build(first, 1)  # one solver: fixed values are parameters
+    signs = (1,) * (len(first.nodes) - 1)
+    assert build(other, signs) is build(first, signs)  # one solver: fixed values are parameters
     again = optimize(other)
     assert again.status == "solved"
 
@@ -167,7 +168,9 @@ def test_quadrature_check_refines_pieces_that_alias(monkeypatch):
     problem = parse_problem(data)
     monkeypatch.setattr(flatopt, "MAX_REFINEMENTS", 0)
     once = optimize(problem)
-    assert quadrature_gaps(problem, once.plan, build(problem, -1)) == [{2, 3}]
+    assert quadrature_gaps(
+        problem, once.plan, build(problem, (-1,) * (len(problem.nodes) - 1))
+    ) == [{2, 3}]
     monkeypatch.undo()
     refined = optimize(problem)
     assert refined.status == "solved" and refined.solver.details.refinements == 1
@@ -300,3 +303,53 @@ def test_path_timing_swing_up_passes_the_rest_via_along_its_acceleration(optimiz
         for n in ("swing_up_path_timing", "swing_up_min_torque")
     ]
     assert ratios[0] < ratios[1]
+
+
+def test_switches_needed_by_the_fixed_signs():
+    """Hanging rest (gamma = -g0) to inverted rest (+g0): one switch, first guessed in the
+    middle of the motion, negative before it and positive after."""
+    from cpopt.flatopt.switching import needed_times, sign_assignments
+
+    problem = load_problem(PROBLEMS / "swing_up_holding.yaml")
+    assert needed_times(problem) == (0.8,)
+    assert sign_assignments(problem, (0.8,)) == [(-1, 1)]
+    assert sign_assignments(problem) == []  # no pattern without a switch
+
+
+def test_swing_up_holding_steps_once_at_its_switch(optimized):
+    """Both ends at the holding torque, one xi reset: the only torque step is at the reset,
+    as small as gamma_min allows (|gamma| = gamma_min on both sides)."""
+    sol = optimized["swing_up_holding"]
+    d = sol.solver.details
+    assert d.gamma_signs == ("negative", "positive")
+    assert len(d.switch_times) == 1 and 0.9 < d.switch_times[0] < 1.2  # measured 1.038 s
+    steps = dict(sol.metrics.torque_jumps)
+    assert set(steps) == {"start", "switch[0]", "goal"}
+    assert steps["start"] < 1e-6 and steps["goal"] < 1e-6
+    assert sol.metrics.reset_torque_jump == sol.metrics.max_torque_jump == steps["switch[0]"]
+    assert 1.0 < steps["switch[0]"] < 20.0  # measured 8.8 N m
+    node = sol.plan.nodes[1]
+    assert node.xi_after - node.xi == pytest.approx(2 * 2.0 * (1 + 2e-3), rel=1e-6)
+    assert sol.metrics.min_abs_gamma >= 2.0
+    v = sol.verification
+    assert v.closed_loop.max_cp_error < 1e-6 and v.open_loop.final_state_error < 1e-5
+    doc = sol.solver.details.as_dict()
+    assert doc["gamma_signs"] == ["negative", "positive"]
+    assert doc["switch_times"] == list(d.switch_times)
+    assert doc["sign_choices"][0]["signs"] == ["negative", "positive"]
+
+
+def test_auto_switches_lower_the_transfer_cost(optimized):
+    """gamma_switches: auto on the T = 1 s transfer: every pattern tried is reported, and the
+    one kept costs at least 1 % less than the best plan with one sign of gamma."""
+    sol = optimized["transfer_switch"]
+    d = sol.solver.details
+    choices = d.sign_choices
+    one_sign = [c for c in choices if not c.switch_times and c.status == "solved"]
+    assert {c.signs for c in one_sign} == {("positive",), ("negative",)}
+    assert len(d.switch_times) >= 1 and len(set(d.gamma_signs)) == 2
+    assert sol.solver.objective < 0.99 * min(c.objective for c in one_sign)
+    assert sol.solver.objective == min(c.objective for c in choices if c.status == "solved")
+    assert "auto asked" in d.search
+    assert sol.metrics.min_abs_gamma >= 2.0
+    assert sol.verification.closed_loop.max_cp_error < 1e-6

@@ -8,9 +8,11 @@ and the limits are checked between the samples, and samples are added where they
 the pace of a timing law instead (:mod:`~cpopt.flatopt.path_timing`): another curve family
 feeding the same NLP.
 
-The sign of gamma is one for the whole motion: gamma depends on (xi, theta, thetadot), all
-continuous at via states (an eta reset does not change it), so two phases meeting at a via state
-share their sign. ``auto`` tries both signs and keeps the better solution.
+Each phase keeps its own sign of gamma. gamma depends on (xi, theta, thetadot): theta and
+thetadot are continuous at via states, so two phases meeting at a via state share their sign
+unless xi is reset there (``xi_after``). Which patterns of signs are tried, and where the
+optimizer adds via states that reset xi to switch the sign (``gamma_switches``), is
+:mod:`~cpopt.flatopt.switching`'s job; every pattern solved is reported.
 """
 
 from __future__ import annotations
@@ -20,12 +22,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import flat, progress
-from ..nodes import gamma_is_free, node_names, nodes_from_values, to_file
+from .. import progress
+from ..nodes import node_names, nodes_from_values, to_file
 from ..objectives import weights
 from ..plan import CPPlan, Phase
 from ..problem import Problem
 from ..solver import SolverStats, run_nlp
+from . import switching
 from .path_timing import chosen_points
 from .refine import (
     CERTIFICATION,
@@ -37,12 +40,27 @@ from .refine import (
 from .transcribe import FlatNLP, build, initial_grids, phase_pieces
 from .warm_start import initial_guess
 
+SIGN_NAMES = {1: "positive", -1: "negative"}
+"""The words for the signs of gamma, as ``gamma_sign`` spells them."""
+
 
 @dataclass(frozen=True)
 class SignAttempt:
-    """The outcome of solving for one sign of gamma (refinement rounds included)."""
+    """The outcome of solving for one pattern of signs of gamma (refinement rounds included).
 
-    sign: str
+    Attributes
+    ----------
+    signs : tuple of str
+        The sign of gamma of each phase of the plan (``positive``, ``negative``).
+    switch_times : tuple of float
+        The times of the via states the optimizer added to switch the sign [s].
+    active_gamma : tuple of (float, float)
+        Where the margin |gamma| >= gamma_min binds: (time [s], multiplier) of each such
+        constraint, for the search of :mod:`~cpopt.flatopt.switching`.
+    """
+
+    signs: tuple[str, ...]
+    switch_times: tuple[float, ...]
     status: str
     ipopt_status: str
     objective: float
@@ -54,30 +72,60 @@ class SignAttempt:
     violations: tuple[str, ...] = ()
     build_time_s: float = 0.0
     solve_time_s: float = 0.0
+    active_gamma: tuple[tuple[float, float], ...] = field(default=(), repr=False)
+
+    @property
+    def sign(self) -> str:
+        """The sign of gamma of the first phase (of every phase without switches or xi
+        resets)."""
+        return self.signs[0]
 
     def as_dict(self) -> dict:
         """JSON-ready figures (without the plan)."""
         keys = (
-            "sign", "status", "ipopt_status", "objective", "cost_terms", "iterations",
-            "certified_min_abs_gamma", "refinements",
+            "sign", "signs", "switch_times", "status", "ipopt_status", "objective",
+            "cost_terms", "iterations", "certified_min_abs_gamma", "refinements",
         )  # fmt: skip
-        return {k: getattr(self, k) for k in keys}
+        out = {k: getattr(self, k) for k in keys}
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
 
 @dataclass(frozen=True)
 class FlatDetails:
-    """What the flat optimizer reports beyond the common solver statistics."""
+    """What the flat optimizer reports beyond the common solver statistics.
 
-    gamma_sign: str
+    Attributes
+    ----------
+    gamma_signs : tuple of str
+        The sign of gamma of each phase of the returned plan.
+    switch_times : tuple of float
+        The times of the via states the optimizer added to switch the sign [s].
+    sign_choices : tuple of SignAttempt
+        Every pattern of signs (and switches) solved, in the order tried.
+    search : str
+        How the pattern was chosen, in one line.
+    """
+
+    gamma_signs: tuple[str, ...]
+    switch_times: tuple[float, ...]
     certified_min_abs_gamma: float
     refinements: int
     sign_choices: tuple[SignAttempt, ...]
+    search: str = ""
     certification: str = CERTIFICATION
+
+    @property
+    def gamma_sign(self) -> str:
+        """The sign of gamma of the first phase."""
+        return self.gamma_signs[0]
 
     def as_dict(self) -> dict:
         """JSON-ready figures for ``solution.json``."""
         return {
             "gamma_sign": self.gamma_sign,
+            "gamma_signs": list(self.gamma_signs),
+            "switch_times": list(self.switch_times),
+            "search": self.search,
             "certified_min_abs_gamma": self.certified_min_abs_gamma,
             "certification": self.certification,
             "refinements": self.refinements,
@@ -109,28 +157,19 @@ class OptimizeResult:
         return self.solver.violations
 
 
-def signs_to_try(problem: Problem) -> list[int]:
-    """The signs of gamma to try: one for the whole motion (see the module docstring)."""
-    o = problem.spec.optimizer
-    wanted = set(o.gamma_sign or ["auto"])
-    if len(wanted - {"auto"}) > 1:
-        raise ValueError(
-            "gamma_sign: gamma keeps one sign over the whole motion (it is "
-            "continuous at via states); give the same sign for every phase"
-        )
-    if wanted - {"auto"}:
-        return [1 if "positive" in wanted else -1]
-    arm = problem.arm
-    fixed = []
-    for name, node in zip(node_names(len(problem.nodes)), problem.nodes, strict=True):
-        if not gamma_is_free(name, problem.free):
-            fixed.append(float(flat.gamma(node.state(), arm.K, arm.gravity)))
-    signs = {int(np.sign(g)) for g in fixed if abs(g) > 0}
-    return sorted(signs) if signs else [-1, 1]
+def plan_from(
+    problem: Problem,
+    nlp: FlatNLP,
+    x: np.ndarray,
+    p: np.ndarray,
+    signs: tuple[int, ...],
+    switches: tuple[int, ...] = (),
+):
+    """Unpack a decision vector into a CPPlan, its node times and the cost terms.
 
-
-def plan_from(problem: Problem, nlp: FlatNLP, x: np.ndarray, p: np.ndarray, sign: int):
-    """Unpack a decision vector into a CPPlan, its node times and the cost terms."""
+    ``switches`` are the indices of the via states the optimizer added; the plan's free values
+    are named as the problem file names them, and ``switch[j].<field>`` for those.
+    """
     o = problem.spec.optimizer
     outs = nlp.unpack(x, p)
     values = dict(zip(problem.values, np.asarray(outs[0]).ravel(), strict=True))
@@ -142,16 +181,20 @@ def plan_from(problem: Problem, nlp: FlatNLP, x: np.ndarray, p: np.ndarray, sign
             phase_pieces(problem, k, np.asarray(outs[1 + k]), times[k], times[k + 1] - times[k]),
             sign,
         )
-        for k in range(n_phases)
+        for k, sign in enumerate(signs)
     )
     w = weights(o.objective)
     terms = {k: float(v) for k, v in zip(w, outs[1 + n_phases :], strict=True)}
-    free_values = {name: to_file(name, values[name]) for name in problem.free}
+    shown = dict(zip(node_names(len(nodes)), node_names(len(nodes), switches), strict=True))
+    free_values = {}
+    for name in problem.free:
+        node, dot, f = name.partition(".")
+        free_values[f"{shown.get(node, node)}{dot}{f}"] = to_file(name, values[name])
     if o.curve == "path_timing":
         free_values.update(chosen_points(o.path, [outs[1 + k] for k in range(n_phases)]))
     plan = CPPlan(
         arm=problem.arm, nodes=tuple(nodes), phases=phases, planner="optimize",
-        free_values=free_values,
+        free_values=free_values, switches=tuple(switches),
     )  # fmt: skip
     return plan, times, terms
 
@@ -162,28 +205,62 @@ def _bounds(nlp: FlatNLP, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     return np.r_[lo, [-np.inf] * n_lifted], np.r_[hi, [np.inf] * n_lifted]
 
 
-def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
-    """Solve for one sign of gamma, refining the sample grid until the margin is certified."""
+def active_gamma(nlp: FlatNLP, g: np.ndarray, lam_g: np.ndarray, times: list) -> tuple:
+    """(time [s], multiplier) of every margin constraint on |gamma| that binds (within 1e-6
+    of its bound, with a positive multiplier)."""
+    out = []
+    binding = (g - nlp.lbg <= 1e-6 * (1 + np.abs(nlp.lbg))) & (lam_g > 0)
+    for (name, (phase, s)), lam in zip(nlp.rows, lam_g * binding, strict=True):
+        if lam > 0 and name.startswith(("|gamma| >= gamma_min", "sign(gamma) at node")):
+            out.append((times[phase] + s * (times[phase + 1] - times[phase]), float(lam)))
+    return tuple(out)
+
+
+def pattern_label(signs: tuple[int, ...], switches: int = 0) -> str:
+    """How progress names a pattern: ``gamma positive``, or ``gamma -/+ (1 switch)``."""
+    if len(set(signs)) == 1:
+        return f"gamma {SIGN_NAMES[signs[0]]}"
+    words = f"gamma {'/'.join('+' if s > 0 else '-' for s in signs)}"
+    return words + (f" ({switches} switch{'es' if switches > 1 else ''})" if switches else "")
+
+
+def solve_for_signs(
+    problem: Problem,
+    signs: tuple[int, ...],
+    switches: tuple[int, ...] = (),
+) -> SignAttempt:
+    """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
+    the margin is certified.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem, with the via states the optimizer added among its nodes.
+    signs : tuple of int
+        The sign of gamma of each phase, +1 or -1.
+    switches : tuple of int
+        The indices of the nodes the optimizer added (:func:`cpopt.nodes.node_names`).
+    """
     grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
     iterations = refinements = 0
-    word = "positive" if sign > 0 else "negative"
+    pattern = pattern_label(signs, len(switches))
     for round_ in range(1, 2 + MAX_REFINEMENTS):
-        label = f"gamma {word}" + (f", refinement {round_ - 1}" if round_ > 1 else "")
+        label = pattern + (f", refinement {round_ - 1}" if round_ > 1 else "")
         progress.stage(f"flat optimizer: {label}")
         tic = time.perf_counter()
-        nlp = build(problem, sign, grids)
+        nlp = build(problem, signs, grids)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
-        x0 = initial_guess(nlp, problem, sign) if x0 is None else nlp.complete(x0, p)
+        x0 = initial_guess(nlp, problem, signs) if x0 is None else nlp.complete(x0, p)
         lbx, ubx = _bounds(nlp, problem)
         run = run_nlp(
             nlp.solver, nlp.reporter, label, x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg
         )
         solve_time += run.solve_time_s
         iterations += run.iterations
-        plan, times, terms = plan_from(problem, nlp, run.x, p, sign)
+        plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
         if run.status != "solved":
             break
         dips = between_samples(problem, plan, times)
@@ -196,7 +273,8 @@ def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
     # constraints of the plan the user gets: lifted samples recomputed from the core variables
     g = np.asarray(nlp.constraints(nlp.complete(run.x, p), p)).ravel()
     return SignAttempt(
-        sign="positive" if sign > 0 else "negative",
+        signs=tuple(SIGN_NAMES[s] for s in signs),
+        switch_times=tuple(float(plan.nodes[i].t) for i in switches),
         status=run.status,
         ipopt_status=run.return_status,
         objective=run.objective,
@@ -208,6 +286,7 @@ def solve_for_sign(problem: Problem, sign: int) -> SignAttempt:
         violations=tuple(violations(nlp, g, times)),
         build_time_s=build_time,
         solve_time_s=solve_time,
+        active_gamma=active_gamma(nlp, g, run.lam_g, times),
     )
 
 
@@ -222,13 +301,16 @@ def optimize(problem: Problem) -> OptimizeResult:
     Returns
     -------
     OptimizeResult
-        The best plan over the signs of gamma tried, with an honest status: a failed solve
-        returns Ipopt's best iterate, its status and the violated constraints by name and time.
+        The best plan over the patterns of signs of gamma tried, with an honest status: a
+        failed solve returns Ipopt's best iterate, its status and the violated constraints by
+        name and time.
     """
-    attempts = [solve_for_sign(problem, sign) for sign in signs_to_try(problem)]
-    solved = [a for a in attempts if a.status == "solved"]
-    best = min(solved or attempts, key=lambda a: a.objective)
-    message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
+    search = switching.search(problem, solve_for_signs)
+    attempts, best = search.attempts, search.best
+    if len(set(best.signs)) == 1:
+        message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
+    else:
+        message = f"Ipopt: {best.ipopt_status} (signs of gamma: {'/'.join(best.signs)})"
     if best.status != "solved" and best.violations:
         message += "; violated: " + "; ".join(best.violations[:3])
     stats = SolverStats(
@@ -240,13 +322,15 @@ def optimize(problem: Problem) -> OptimizeResult:
         cost_terms=best.cost_terms,
         violations=best.violations,
         details=FlatDetails(
-            gamma_sign=best.sign,
+            gamma_signs=best.signs,
+            switch_times=best.switch_times,
             certified_min_abs_gamma=best.certified_min_abs_gamma,
             refinements=best.refinements,
             sign_choices=tuple(attempts),
+            search=search.summary,
         ),
     )
     return OptimizeResult(status=best.status, plan=best.plan, solver=stats)
 
 
-__all__ = ["FlatDetails", "OptimizeResult", "SignAttempt", "optimize"]
+__all__ = ["SIGN_NAMES", "FlatDetails", "OptimizeResult", "SignAttempt", "optimize"]

@@ -14,6 +14,11 @@ A phase's curve is an object of its family (:class:`SplineCurve`, or
 decision blocks and boundary conditions and yields the CP derivatives at any normalised times;
 everything after that is common to the families.
 
+Each phase has its own sign of gamma. Where two phases of opposite signs meet (a via state that
+resets xi) with ``smooth_torque``, the compensator inputs alpha are shared by both sides and
+|gamma| sits at the margin on both, so the torque steps there only by the base acceleration
+that the smallest admissible xi reset, 2 gamma_min (1 + GAMMA_SAFETY) along the link, implies.
+
 Lifting: the CP derivatives of each sample are decision variables tied to the coefficients by
 linear constraints, and every sample-wise quantity (torques, joint motion, reach) is one of the
 outputs of the compiled per-sample library (:mod:`cpopt.flatopt.samples`). The transcription
@@ -33,7 +38,7 @@ import numpy as np
 from .. import flat
 from ..bspline import SplineBasis
 from ..limits import Limit
-from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..nodes import MIN_PHASE, NODE_FIELDS, has_reset, node_names
 from ..objectives import default_hessian, squared_norm, weights
 from ..problem import Problem
 from ..solver import IterationReporter, ipopt_options
@@ -169,7 +174,7 @@ class _Transcription:
     """What the transcription of one NLP shares between its steps."""
 
     problem: Problem
-    sign: int
+    signs: tuple[int, ...]
     holding: tuple
     sym: dict
     layout: Layout = field(default_factory=Layout)
@@ -182,6 +187,7 @@ class _Transcription:
     coefficients: list = field(default_factory=list)
     blocks: list = field(default_factory=list)
     samples: list = field(default_factory=list)
+    node_lifts: dict = field(default_factory=dict)  # (node, after, fourth) -> (symbol, value)
 
     @property
     def settings(self):
@@ -209,13 +215,58 @@ class _Transcription:
         nm = self.names
         return [ca.MX(0.0), *(self.sym[f"{v}.t"] for v in nm[1:-1]), self.sym["duration"]]
 
+    def value(self, name: str) -> ca.MX:
+        """The symbol of a node value; a via state's ``xi_after`` is its ``xi`` when the state
+        has no xi reset (:func:`cpopt.nodes.has_reset`)."""
+        node, _, f = name.partition(".")
+        if f == "xi_after":
+            i = self.names.index(node)
+            if not has_reset(self.problem.nodes[i], node, "xi", self.problem.free):
+                return self.sym[f"{node}.xi"]
+        return self.sym[name]
+
     def node_state(self, i: int, after: bool) -> ca.MX:
-        """Node i's extended state z (8) as symbols, after its eta reset if ``after``."""
+        """Node i's extended state z (8) as symbols, after its resets of xi and eta if
+        ``after``."""
         name = self.names[i]
         values = [self.sym[f"{name}.{f}"] for f in NODE_FIELDS]
         if after and name.startswith("via"):
+            values[-2] = self.value(f"{name}.xi_after")
             values[-1] = self.sym[f"{name}.eta_after"]
         return ca.vertcat(*values)
+
+    def pinned_switch(self, i: int) -> bool:
+        """True when node i is a via state where the sign of gamma changes and ``smooth_torque``
+        pins |gamma| to the margin on both sides (:func:`_switch_constraints`)."""
+        if not 0 < i < len(self.signs) or self.signs[i - 1] == self.signs[i]:
+            return False
+        return self.settings.smooth_torque and f"{self.names[i]}.xi_after" in self.problem.free
+
+    def node_derivatives(self, i: int, after: bool, fourth: bool) -> ca.MX:
+        """CP derivatives 0..3 at node i (2 x 4), and the fourth from its compensator inputs
+        (2 x 5) with ``fourth``.
+
+        At a via state whose xi reset is free (a switch) they are lifted: variables tied to the
+        node's values by a constraint. The boundary coefficients are then linear in the
+        decision variables: the flat map's curvature in the node's free state, which the fourth
+        derivative at the node amplifies by (pieces / duration)^4, stays in one small
+        constraint instead of in every sample near the node.
+        """
+        z = self.node_state(i, after)
+        P = self.flat["output"](z)
+        if fourth:
+            P = ca.horzcat(P, self.flat["fourth"](z, self.alphas[i]))
+        if f"{self.names[i]}.xi_after" not in self.problem.free:
+            return P
+        key = (i, after, fourth)
+        if key not in self.node_lifts:
+            lifted = ca.MX.sym(f"node{i}_{int(after)}", *P.shape)
+            self.lifted.append(ca.vec(lifted))
+            self.lifted_values.append(ca.vec(P))
+            where = (i, 0.0) if after else (i - 1, 1.0)
+            self.g.add(ca.vec(lifted - P), 0, 0, f"{self.names[i]}: CP derivatives", [where])
+            self.node_lifts[key] = (lifted, P)
+        return self.node_lifts[key][0]
 
     def depends_on_decisions(self, expr) -> bool:
         return ca.depends_on(expr, self.layout.vector())
@@ -254,11 +305,12 @@ def holding_possible(problem: Problem, sign: int, index: int) -> bool:
     return sign * problem.arm.gravity * np.sin(node.theta) >= max(gamma_min, 1e-3)
 
 
-def holding_pattern(problem: Problem, sign: int) -> tuple[bool, ...]:
-    """Per node: held at the holding torque (a rest end, ``smooth_torque``, and possible)."""
+def holding_pattern(problem: Problem, signs: tuple[int, ...]) -> tuple[bool, ...]:
+    """Per node: held at the holding torque (a rest end, ``smooth_torque``, and possible with
+    the sign of gamma of the phase it starts or ends)."""
     smooth = problem.spec.optimizer.smooth_torque
     return tuple(
-        rest and smooth and holding_possible(problem, sign, i)
+        rest and smooth and holding_possible(problem, signs[min(i, len(signs) - 1)], i)
         for i, rest in enumerate(rest_ends(problem))
     )
 
@@ -293,26 +345,34 @@ def initial_grids(problem: Problem) -> tuple[Grid, ...]:
     return tuple(Grid(piece_counts(o.samples, b.breaks.size - 1)) for b in bases)
 
 
-def build(problem: Problem, sign: int, grids: tuple[Grid, ...] | None = None) -> FlatNLP:
-    """Build (or fetch) the NLP for a problem structure, a sign of gamma and sample grids.
+def build(
+    problem: Problem, signs: tuple[int, ...], grids: tuple[Grid, ...] | None = None
+) -> FlatNLP:
+    """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
     Parameters
     ----------
     problem : Problem
-        The problem; only its structure (arm, node count, freed names, settings) matters, its
-        fixed values are parameters of the returned solver.
-    sign : int
-        The sign of gamma, +1 or -1.
+        The problem; only its structure (arm, node count, freed names, xi resets, settings)
+        matters, its fixed values are parameters of the returned solver.
+    signs : tuple of int
+        The sign of gamma of each phase, +1 or -1.
     grids : tuple of Grid, optional
         Each phase's samples (default :func:`initial_grids`; refinement adds to them).
     """
     grids = initial_grids(problem) if grids is None else grids
-    holding = holding_pattern(problem, sign)
+    holding = holding_pattern(problem, signs)
+    names = node_names(len(problem.nodes))
+    resets = tuple(
+        has_reset(node, name, "xi", problem.free)
+        for name, node in zip(names[1:-1], problem.nodes[1:-1], strict=True)
+    )
     key = (
         problem.arm,
         len(problem.nodes),
         tuple(sorted(problem.free)),
-        sign,
+        resets,
+        signs,
         grids,
         holding,
         _settings_key(problem),
@@ -320,10 +380,11 @@ def build(problem: Problem, sign: int, grids: tuple[Grid, ...] | None = None) ->
     if key not in _CACHE:
         start = time.perf_counter()
         sym = {n: ca.MX.sym(n) for n in problem.values}
-        tr = _Transcription(problem, sign, holding, sym)
+        tr = _Transcription(problem, signs, holding, sym)
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
             _phase(tr, k, grids[k].samples())
+        _switch_constraints(tr)
         _holding_constraints(tr)
         _whole_motion_terms(tr)
         _CACHE[key] = _finish(tr, start)
@@ -350,12 +411,9 @@ def _decisions(tr: _Transcription) -> None:
 def _boundary_rows(tr: _Transcription, i: int, after: bool, h) -> ca.MX | None:
     """CP derivatives at node i scaled to normalised time (pinned count x 2), or None when the
     fourth derivative is to be pinned but this node has no compensator inputs."""
-    z = tr.node_state(i, after)
-    P = tr.flat["output"](z)
-    if tr.settings.smooth_torque:
-        if i not in tr.alphas:
-            return None
-        P = ca.horzcat(P, tr.flat["fourth"](z, tr.alphas[i]))
+    if tr.settings.smooth_torque and i not in tr.alphas:
+        return None
+    P = tr.node_derivatives(i, after, tr.settings.smooth_torque)
     count = int(P.shape[1])
     scale = ca.vertcat(*[h**r for r in range(count)])
     return (P * ca.repmat(scale.T, 2, 1)).T
@@ -364,9 +422,9 @@ def _boundary_rows(tr: _Transcription, i: int, after: bool, h) -> ca.MX | None:
 def _unpinned_end(tr: _Transcription, k: int, i: int, after: bool, h, head: bool) -> list:
     """An end whose fourth derivative is free: 4 eliminated coefficients and a free fifth."""
     inverse = np.linalg.inv(tr.basis.end_matrices(4)[0 if head else 1])
-    z = tr.node_state(i, after)
     scale = ca.vertcat(*[h**r for r in range(4)])
-    fixed = ca.mtimes(inverse, (tr.flat["output"](z) * ca.repmat(scale.T, 2, 1)).T)
+    P = tr.node_derivatives(i, after, False)
+    fixed = ca.mtimes(inverse, (P * ca.repmat(scale.T, 2, 1)).T)
     n = coefficient_count(tr.settings)
     rows = (4, 5) if head else (n - 5, n - 4)
     label = "head" if head else "tail"
@@ -453,7 +511,7 @@ def _phase(tr: _Transcription, k: int, samples: PhaseSamples) -> None:
         [w for w in where for _ in range(10)],
     )
     Y = ca.MX.sym(f"Y{k}", NY, len(s))  # the samples' outputs (see assemble)
-    sigma = np.full(len(s), float(tr.sign))
+    sigma = np.full(len(s), float(tr.signs[k]))
     tr.blocks.append(SampleBlock(lifted, Y, sigma))
     tau, qd = Y[TAU, :], Y[QD, :]
     _gamma_constraints(tr, k, curve, s[m:])
@@ -478,6 +536,10 @@ def _gamma_constraints(tr: _Transcription, k: int, curve, extra: np.ndarray) -> 
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
     s_gamma = np.r_[np.linspace(0.0, 1.0, GAMMA_GRID), extra]
+    # a pinned switch holds |gamma| = gamma_min at the node exactly; the grid's copy would be
+    # a redundant active constraint there
+    keep = ~(((s_gamma == 0) & tr.pinned_switch(k)) | ((s_gamma == 1) & tr.pinned_switch(k + 1)))
+    s_gamma = s_gamma[keep]
     acc = curve.derivatives(s_gamma, 3)[2] + ca.repmat(ca.DM([[0, g0]]), len(s_gamma), 1)
     tr.g.add(
         ca.sum2(acc**2) - gmin**2,
@@ -511,16 +573,41 @@ def _energy(tr: _Transcription, k: int, h, Y, consistent, samples: PhaseSamples)
 
 
 def _node_constraints(tr: _Transcription, k: int, h) -> None:
-    """The sign of gamma at the phase's nodes where it is free; a minimum phase duration."""
+    """The phase's sign of gamma at its nodes where it is free; a minimum phase duration."""
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
-    for z, tn in ((tr.node_state(k, True), 0.0), (tr.node_state(k + 1, False), 1.0)):
-        gam = tr.flat["gamma"](z)
-        if tr.depends_on_decisions(gam):
+    for i, after, tn in ((k, True, 0.0), (k + 1, False, 1.0)):
+        gam = tr.flat["gamma"](tr.node_state(i, after))
+        if tr.depends_on_decisions(gam) and not tr.pinned_switch(i):
             tr.g.add(
-                tr.sign * gam - gmin, 0, ca.inf, f"sign(gamma) at node (phase {k + 1})", [(k, tn)]
+                tr.signs[k] * gam - gmin,
+                0,
+                ca.inf,
+                f"sign(gamma) at node (phase {k + 1})",
+                [(k, tn)],
             )
     if tr.depends_on_decisions(h):
         tr.g.add(h, MIN_PHASE, ca.inf, f"phase {k + 1} duration >= {MIN_PHASE}", [(k, 0.0)])
+
+
+def _switch_constraints(tr: _Transcription) -> None:
+    """With ``smooth_torque``, |gamma| at the margin on both sides of a via state where the
+    sign changes: the xi reset, and with it the torque step, is the smallest the margin
+    allows (alpha, shared by both sides, keeps the rest of the torque continuous)."""
+    gmin = tr.settings.gamma_min * (1 + GAMMA_SAFETY)
+    for i in range(1, len(tr.signs)):
+        if not tr.pinned_switch(i):
+            continue
+        for after, sign in ((False, tr.signs[i - 1]), (True, tr.signs[i])):
+            gam = tr.flat["gamma"](tr.node_state(i, after))
+            if tr.depends_on_decisions(gam):
+                side = "after" if after else "before"
+                tr.g.add(
+                    sign * gam - gmin,
+                    0,
+                    0,
+                    f"{tr.names[i]}: |gamma| = gamma_min {side} the switch",
+                    [(i - 1 + after, 0.0 if after else 1.0)],
+                )
 
 
 def _holding_constraints(tr: _Transcription) -> None:
@@ -540,6 +627,18 @@ def _whole_motion_terms(tr: _Transcription) -> None:
     if "gamma_margin" in tr.cost_terms:
         tr.cost_terms["gamma_margin"] = -tr.margin
         tr.g.add(tr.margin, tr.settings.gamma_min, ca.inf, "gamma margin >= gamma_min", [(0, 0.0)])
+
+
+def _consistent_lifts(tr: _Transcription) -> ca.MX:
+    """The lifted variables' values as functions of the core variables alone (the samples'
+    values go through lifted node derivatives: those are replaced by what they stand for)."""
+    values = ca.vertcat(*tr.lifted_values)
+    if not tr.node_lifts:
+        return values
+    lifted, stand_for = zip(*tr.node_lifts.values(), strict=True)
+    return ca.substitute(
+        values, ca.vertcat(*map(ca.vec, lifted)), ca.vertcat(*map(ca.vec, stand_for))
+    )
 
 
 def _finish(tr: _Transcription, start: float) -> FlatNLP:
@@ -563,7 +662,7 @@ def _finish(tr: _Transcription, start: float) -> FlatNLP:
         **nlp.options,
     }
     solver = ca.nlpsol("flat", "ipopt", {"x": x, "p": p, "f": nlp.f, "g": nlp.g}, opts)
-    values = ca.vertcat(*tr.sym.values())
+    values = ca.vertcat(*[tr.value(n) for n in tr.sym])
     Y = ca.horzcat(*[b.Y for b in tr.blocks])
     outs = ca.Function(
         "unpack_y", [x, p, Y], [values, *tr.coefficients, *[tr.cost_terms[k] for k in w]]
@@ -576,7 +675,7 @@ def _finish(tr: _Transcription, start: float) -> FlatNLP:
         ubg=np.array(tr.g.upper, float),
         rows=tr.g.rows,
         unpack=ca.Function("unpack", [x, p], outs(x, p, nlp.outputs(x, p))),
-        lift=ca.Function("lift", [x_core, p], [ca.vertcat(*tr.lifted_values)]),
+        lift=ca.Function("lift", [x_core, p], [_consistent_lifts(tr)]),
         constraints=ca.Function("constraints", [x, p], [nlp.g]),
         samples=tuple(tr.samples),
         build_time=time.perf_counter() - start,

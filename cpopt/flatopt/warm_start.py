@@ -1,8 +1,9 @@
 """The flat optimizer's initial guess: the paper's closed form through the nodes, projected onto
 the B-spline basis.
 
-Where a node's guessed values give gamma the other sign than the one being solved for and its xi
-is free, xi is moved to the sign's side (gamma_min + 2 m/s^2 past zero). Where the closed form
+Where a node's guessed values give gamma the other sign than the phase's being solved for and its
+xi (or, after a via state's reset, xi_after) is free, it is moved to the sign's side
+(gamma_min + 2 m/s^2 past zero). Where the closed form
 is singular (e.g. a swing-up with x_s = x_g, the paper's remark), its curve is used anyway with a
 lateral CP excursion K sin^2(pi s) added, which moves the guess off gamma = 0.
 """
@@ -12,27 +13,31 @@ from __future__ import annotations
 import numpy as np
 
 from ..bspline import SplineBasis, fit
-from ..nodes import node_names, nodes_from_values
+from ..nodes import has_reset, node_names, nodes_from_values
 from ..plan import CPPlan, SingularPlanError, closed_form
 from ..problem import Problem
 from .path_timing import initial_blocks, timing_guess, unpack
 from .transcribe import FlatNLP, coefficient_count
 
 
-def initial_plan(problem: Problem, sign: int) -> CPPlan:
+def initial_plan(problem: Problem, signs: tuple[int, ...]) -> CPPlan:
     """The closed-form plan through the nodes at their guessed values, xi moved where needed."""
     arm = problem.arm
     K, g0 = arm.K, arm.gravity
     gamma_min = problem.spec.optimizer.gamma_min
     values = problem.values
     xis = {}
-    for name in node_names(len(problem.nodes)):
-        xi = values[f"{name}.xi"]
+    for i, name in enumerate(node_names(len(problem.nodes))):
         thetadot, theta = values[f"{name}.thetadot_deg"], values[f"{name}.theta_deg"]
-        gamma = xi - K * thetadot**2 + g0 * np.sin(theta)
-        if sign * gamma < gamma_min and f"{name}.xi" in problem.free:
-            xi += sign * (gamma_min + 2.0) - gamma
-        xis[name] = xi
+        sides = [("xi", name, signs[max(i - 1, 0)])]
+        if name.startswith("via") and has_reset(problem.nodes[i], name, "xi", problem.free):
+            sides.append(("xi_after", f"{name}.xi_after", signs[i]))
+        for field, key, sign in sides:
+            xi = values[f"{name}.{field}"]
+            gamma = xi - K * thetadot**2 + g0 * np.sin(theta)
+            if sign * gamma < gamma_min and f"{name}.{field}" in problem.free:
+                xi += sign * (gamma_min + 2.0) - gamma
+            xis[key] = xi
     nodes = nodes_from_values(values, len(problem.nodes), xis)
     try:
         return closed_form(arm, nodes)
@@ -64,21 +69,31 @@ def spline_coefficients(problem: Problem, plan: CPPlan) -> list[np.ndarray]:
     return coefficients
 
 
-def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
+def initial_guess(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...]) -> np.ndarray:
     """The whole initial decision vector: core variables and the lifted samples they imply
     (a path-timing problem starts from its file's control points and a smooth timing law)."""
     o = problem.spec.optimizer
-    plan = initial_plan(problem, sign)
+    plan = initial_plan(problem, signs)
     if o.curve == "path_timing":
         blocks, coefficients = initial_blocks(problem), []
     else:
         blocks, coefficients = {}, spline_coefficients(problem, plan)
+    p = nlp.parameters(problem.values)
+    x = nlp.complete(_core(nlp, problem, plan, coefficients, blocks), p)
+    return x if o.curve != "path_timing" else _joined_timing(nlp, problem, x, p)
+
+
+def _core(nlp: FlatNLP, problem: Problem, plan: CPPlan, coefficients: list, blocks: dict):
+    """The core decision variables: node values (xi as the initial plan moved it), zero
+    compensator inputs, the margin at gamma_min, the coefficients and path blocks."""
+    o = problem.spec.optimizer
     node_index = {name: i for i, name in enumerate(node_names(len(plan.nodes)))}
     values = problem.values
     core = []
     for block in nlp.layout.blocks:
-        if block.kind == "value" and block.name.endswith(".xi"):
-            core.append(plan.nodes[node_index[block.name.split(".")[0]]].xi)
+        if block.kind == "value" and block.name.endswith((".xi", ".xi_after")):
+            node = plan.nodes[node_index[block.name.split(".")[0]]]
+            core.append(node.state(after=block.name.endswith("after"))[6])
         elif block.kind == "value":
             core.append(values[block.name])
         elif block.kind == "alpha":
@@ -93,9 +108,7 @@ def initial_guess(nlp: FlatNLP, problem: Problem, sign: int) -> np.ndarray:
         else:  # timing
             lo, hi = block.rows
             core.extend(blocks[f"phase[{block.phase}].timing"][lo:hi])
-    p = nlp.parameters(values)
-    x = nlp.complete(np.asarray(core, float), p)
-    return x if o.curve != "path_timing" else _joined_timing(nlp, problem, x, p)
+    return np.asarray(core, float)
 
 
 def _joined_timing(nlp: FlatNLP, problem: Problem, x: np.ndarray, p: np.ndarray) -> np.ndarray:

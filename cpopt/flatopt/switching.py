@@ -1,0 +1,368 @@
+"""Where gamma changes sign: the patterns of signs the flat optimizer solves for, and the via
+states it adds to switch the sign (``optimizer.gamma_switches``).
+
+A plan's phases each keep one sign of gamma. Across a via state that does not reset xi the
+sign stays (theta, thetadot and xi are continuous); across one that resets xi it may change; a
+fixed value of gamma at a phase's end, or ``gamma_sign`` (the sign at the start of each of the
+file's phases), pins it. A *switch* is a via state the optimizer adds inside a phase, with free
+time, free state (continuous across it), free xi and eta before and after it, and opposite
+signs on its two sides: the plan passes from one side of gamma = 0 to the other without ever
+being singular, and the torque steps there once.
+
+The search (route (a) of issue 11): solve with the fewest switches the pinned signs need, then
+add a switch where the margin |gamma| >= gamma_min binds hardest (the largest sum of the
+constraints' multipliers over a stretch where it binds) or in the middle of the longest phase,
+re-solve, and repeat until ``gamma_switches`` switches are placed or, with ``auto``, until a
+switch lowers the cost by less than :data:`GAIN`. Every pattern solved is kept and reported.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..plan import Node
+from ..problem import MAX_SWITCHES, Problem
+
+GAIN = 0.01
+"""``auto`` keeps a switch only when it lowers the cost by at least this fraction."""
+SWITCH_FIELDS = (*NODE_FIELDS, "xi_after", "eta_after", "t")
+"""The values of a switch the optimizer chooses: the whole state, xi and eta on both sides
+and the time."""
+SIGN_WORDS = {"positive": 1, "negative": -1}
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """Switch times and signs: the structure of one NLP.
+
+    Attributes
+    ----------
+    times : tuple of float
+        Initial times of the switches [s] (the solve moves them).
+    signs : tuple of int
+        The sign of gamma of each phase of the plan (the file's phases split at the switches).
+    """
+
+    times: tuple[float, ...]
+    signs: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Search:
+    """Every pattern solved, the best one, and how the search ended."""
+
+    attempts: tuple
+    best: object
+    summary: str
+
+
+def _phases(problem: Problem, times: tuple[float, ...]) -> list[tuple[int, float, float]]:
+    """The plan's phases for switch times: (the file's phase, start [s], end [s])."""
+    ends = [n.t for n in problem.nodes]
+    out = []
+    for k in range(len(ends) - 1):
+        cuts = [ends[k], *sorted(t for t in times if ends[k] < t < ends[k + 1]), ends[k + 1]]
+        out += [(k, a, b) for a, b in itertools.pairwise(cuts)]
+    return out
+
+
+def _pins(problem: Problem, phases: list) -> list[set[int]]:
+    """Per phase of the plan, the signs its fixed values of gamma and ``gamma_sign`` allow."""
+    arrive, leave = problem.gamma_sides
+    wanted = problem.spec.optimizer.gamma_sign or ["auto"] * (len(problem.nodes) - 1)
+    out = []
+    for j, (k, _, _) in enumerate(phases):
+        allowed = {1, -1}
+        first = j == 0 or phases[j - 1][0] != k
+        last = j == len(phases) - 1 or phases[j + 1][0] != k
+        sides = ([leave[k]] if first else []) + ([arrive[k + 1]] if last else [])
+        for side in sides:
+            if side.fixed:
+                allowed &= {int(np.sign(side.gamma))}
+        if first and wanted[k] in SIGN_WORDS:
+            allowed &= {SIGN_WORDS[wanted[k]]}
+        out.append(allowed)
+    return out
+
+
+def _groups(problem: Problem, phases: list) -> tuple[list[list[int]], list[int]]:
+    """Groups of the plan's phases whose signs are tied (by switches and by via states of the
+    file that do not reset xi), and each phase's sign relative to its group's first."""
+    arrive, leave = problem.gamma_sides
+    groups: list[list[int]] = []
+    relation: list[int] = []
+    for j, (k, _, _) in enumerate(phases):
+        switch = j > 0 and phases[j - 1][0] == k
+        if j and (switch or leave[k] is arrive[k]):  # no xi reset between j - 1 and j
+            relation.append(-relation[-1] if switch else relation[-1])
+            groups[-1].append(j)
+        else:
+            relation.append(1)
+            groups.append([j])
+    return groups, relation
+
+
+def sign_assignments(problem: Problem, times: tuple[float, ...] = ()) -> list[tuple[int, ...]]:
+    """Every pattern of signs the pins allow for switches at ``times``: opposite signs across a
+    switch, the same across a via state of the file that does not reset xi, either across one
+    that does."""
+    phases = _phases(problem, times)
+    pins = _pins(problem, phases)
+    groups, relation = _groups(problem, phases)
+    choices = []
+    for group in groups:
+        fits = [s for s in (1, -1) if all(s * relation[j] in pins[j] for j in group)]
+        choices.append([tuple(s * relation[j] for j in group) for s in fits])
+    return [sum(combo, ()) for combo in itertools.product(*choices)]
+
+
+def _conflict(problem: Problem, times: tuple[float, ...]) -> tuple[float, float] | None:
+    """The longest phase between two pins that disagree (start, end [s]), or None."""
+    phases = _phases(problem, times)
+    pins = _pins(problem, phases)
+    groups, relation = _groups(problem, phases)
+    for group in groups:
+        pinned = [(j, next(iter(pins[j])) * relation[j]) for j in group if len(pins[j]) == 1]
+        spans = [(j, j) for j in group if not pins[j]]  # both ends of one phase disagree
+        spans += [(a, b) for (a, sa), (b, sb) in itertools.pairwise(pinned) if sa != sb]
+        if spans:
+            a, b = spans[0]
+            _, t0, t1 = max(phases[a : b + 1], key=lambda ph: ph[2] - ph[1])
+            return t0, t1
+    return None
+
+
+def needed_times(problem: Problem) -> tuple[float, ...]:
+    """Switch times that make the pinned signs possible: one in the middle of the longest
+    phase between two pins that disagree, until a pattern exists."""
+    times: tuple[float, ...] = ()
+    while (span := _conflict(problem, times)) is not None and len(times) < MAX_SWITCHES:
+        times = tuple(sorted((*times, 0.5 * (span[0] + span[1]))))
+    return times
+
+
+def _interpolated(problem: Problem, t: float) -> np.ndarray:
+    """The state z (8) between the file's nodes around t, interpolated linearly."""
+    nodes = problem.nodes
+    k = max(i for i, n in enumerate(nodes[:-1]) if n.t <= t)
+    a, b = nodes[k].state(after=True), nodes[k + 1].state()
+    s = (t - nodes[k].t) / (nodes[k + 1].t - nodes[k].t)
+    return (1 - s) * a + s * b
+
+
+def with_switches(problem: Problem, times: tuple[float, ...]) -> tuple[Problem, tuple[int, ...]]:
+    """The problem with switches added at ``times``, and their indices among its nodes.
+
+    A switch's values are free (its time between its neighbours, kept ``MIN_PHASE`` apart by
+    the NLP); their initial guess is the file's node states interpolated linearly (the warm
+    start then moves xi before and after it to the signs' sides). The file's via states keep
+    their values and freed names, renumbered.
+    """
+    files = problem.nodes
+    nodes, index, switches = [files[0]], {}, []
+    ordered = sorted(times)
+    for i, node in enumerate(files[1:], start=1):
+        for t in [t for t in ordered if nodes[-1].t < t < node.t]:
+            z = _interpolated(problem, t)
+            switches.append(len(nodes))
+            nodes.append(Node(t, *z[:6], xi=z[6], eta=z[7], xi_after=z[6], eta_after=z[7]))
+        index[i] = len(nodes)
+        nodes.append(node)
+    old, new = node_names(len(problem.nodes)), node_names(len(nodes))
+    renamed = {old[i]: new[index.get(i, 0)] for i in range(len(old))}
+    free = {}
+    for name, bounds in problem.free.items():
+        node, dot, f = name.partition(".")
+        free[f"{renamed.get(node, node)}{dot}{f}"] = bounds
+    for i in switches:
+        free.update({f"{new[i]}.{f}": (-math.inf, math.inf) for f in SWITCH_FIELDS})
+    return replace(problem, nodes=tuple(nodes), free=free), tuple(switches)
+
+
+Solve = Callable[..., object]
+"""``solve(problem, signs, switches) -> SignAttempt``, as
+:func:`cpopt.flatopt.solve_for_signs`."""
+
+
+@dataclass(frozen=True)
+class Stretch:
+    """A stretch of time where the margin |gamma| >= gamma_min binds.
+
+    Attributes
+    ----------
+    weight : float
+        The sum of the binding constraints' multipliers.
+    t : float
+        Their multiplier-weighted mean time [s].
+    start, end : float
+        Where the stretch begins and ends [s].
+    """
+
+    weight: float
+    t: float
+    start: float
+    end: float
+
+
+def stretches(active: tuple, duration: float) -> list[Stretch]:
+    """The stretches where the margin binds, heaviest first, from (time, multiplier) pairs
+    (rows closer than 1 % of the duration belong to one stretch)."""
+    out, current = [], []
+    for t, lam in sorted(active):
+        if current and t - current[-1][0] > 0.01 * duration:
+            out.append(current)
+            current = []
+        current.append((t, lam))
+    out += [current] if current else []
+    result = []
+    for rows in out:
+        t, lam = np.array(rows).T
+        result.append(Stretch(float(lam.sum()), float(t @ lam / lam.sum()), t[0], t[-1]))
+    return sorted(result, key=lambda s: -s.weight)
+
+
+def _carried(problem: Problem, old: Pattern, times: tuple[float, ...]) -> list[int]:
+    """The signs of ``old`` carried over to the phases of switches at ``times``."""
+    before = _phases(problem, old.times)
+    out = []
+    for k, a, b in _phases(problem, times):
+        mid = 0.5 * (a + b)
+        out.append(next(s for (kk, aa, bb), s in zip(before, old.signs, strict=True)
+                        if kk == k and aa <= mid <= bb))  # fmt: skip
+    return out
+
+
+def _inside(problem: Problem, times: tuple[float, ...], t: float) -> float | None:
+    """t moved at least MIN_PHASE away from the nodes and switches around it, or None."""
+    marks = sorted({n.t for n in problem.nodes} | set(times))
+    lo = max(m for m in marks if m <= t)
+    hi = min(m for m in marks if m >= t)
+    if hi - lo < 2 * MIN_PHASE:
+        return None
+    return min(max(t, lo + MIN_PHASE), hi - MIN_PHASE)
+
+
+def single_switch(problem: Problem, old: Pattern, t: float) -> list[Pattern]:
+    """The patterns that add one switch at time t [s] with either side flipped (those the pins
+    allow)."""
+    t = _inside(problem, old.times, t)
+    if t is None:
+        return []
+    times = tuple(sorted((*old.times, t)))
+    carried = _carried(problem, old, times)
+    j = _phases(problem, times).index(next(ph for ph in _phases(problem, times) if ph[1] == t))
+    groups, _ = _groups(problem, _phases(problem, times))
+    group = next(g for g in groups if j in g)
+    options = []
+    for flipped in ([i for i in group if i >= j], [i for i in group if i < j]):
+        signs = tuple(-s if i in flipped else s for i, s in enumerate(carried))
+        if signs in sign_assignments(problem, times):
+            options.append(Pattern(times, signs))
+    return options
+
+
+def next_patterns(problem: Problem, old: Pattern, stretch: Stretch) -> list[Pattern]:
+    """The patterns that add a switch where a stretch binds: one switch with either side
+    flipped (those the pins allow), or, when neither is allowed, a pair around the stretch
+    with its middle flipped."""
+    options = single_switch(problem, old, stretch.t)
+    if options:
+        return options
+    half = max(0.5 * (stretch.end - stretch.start), 0.5 * MIN_PHASE)
+    first = _inside(problem, old.times, stretch.t - half)
+    second = _inside(problem, old.times, stretch.t + half)
+    if first is None or second is None or second - first < MIN_PHASE:
+        return []
+    times = tuple(sorted((*old.times, first, second)))
+    carried = _carried(problem, old, times)
+    middle = next(i for i, ph in enumerate(_phases(problem, times)) if ph[1] == first)
+    signs = tuple(-s if i == middle else s for i, s in enumerate(carried))
+    return [Pattern(times, signs)] if signs in sign_assignments(problem, times) else []
+
+
+def _solve(solve: Solve, problem: Problem, pattern: Pattern):
+    """Solve one pattern from the closed form through the file's nodes and switch states
+    interpolated between them. (Starting from the previous plan was measured worse: where the
+    new pattern flips the sign of a long stretch its CP curve asks for the link turned by half
+    a turn, and a failed solve costs its whole iteration limit.)"""
+    augmented, switches = with_switches(problem, pattern.times)
+    return solve(augmented, pattern.signs, switches)
+
+
+def _pattern(attempt) -> Pattern:
+    return Pattern(attempt.switch_times, tuple(ph.sigma for ph in attempt.plan.phases))
+
+
+def _best(attempts):
+    solved = [a for a in attempts if a.status == "solved"]
+    return min(solved or attempts, key=lambda a: a.objective)
+
+
+def candidates(problem: Problem, best, budget: int) -> list[Pattern]:
+    """The patterns to try with a switch more than ``best``'s: where the margin binds hardest
+    (the first stretch that takes one), and in the middle of the longest phase when that is
+    farther than a tenth of the motion from there (a one-sign plan need not touch the margin
+    near the crossings of the unconstrained optimum: the benchmark swing-up binds at 1.51 s
+    and 0 s, and crosses at 1.04 s)."""
+    old = _pattern(best)
+    duration = problem.nodes[-1].t
+    out: list[Pattern] = []
+    for stretch in stretches(best.active_gamma, duration):
+        out = [p for p in next_patterns(problem, old, stretch) if len(p.times) <= budget]
+        if out:
+            break
+    _, a, b = max(_phases(problem, old.times), key=lambda ph: ph[2] - ph[1])
+    middle = 0.5 * (a + b)
+    placed = {t for p in out for t in p.times} - set(old.times)
+    if all(abs(middle - t) > 0.1 * duration for t in placed):
+        out += [p for p in single_switch(problem, old, middle) if len(p.times) <= budget]
+    return out
+
+
+def search(problem: Problem, solve: Solve) -> Search:
+    """Solve the patterns of signs a problem allows and, with ``gamma_switches``, add switches
+    where the margin binds (see the module docstring).
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem.
+    solve : callable
+        ``solve(problem, signs, switches) -> SignAttempt``.
+
+    Returns
+    -------
+    Search
+        Every attempt, the best (the cheapest solved one, else the cheapest), and a summary.
+    """
+    wanted = problem.spec.optimizer.gamma_switches
+    budget = MAX_SWITCHES if wanted == "auto" else wanted
+    times = needed_times(problem) if budget else ()
+    first = [Pattern(times, signs) for signs in sign_assignments(problem, times)]
+    attempts = [_solve(solve, problem, pattern) for pattern in first]
+    best = _best(attempts)
+    summary = f"{len(times)} switch(es) needed by the fixed signs"
+    while best.status == "solved" and len(best.switch_times) < budget:
+        patterns = candidates(problem, best, budget)
+        if not patterns:
+            summary += "; no place left for a switch"
+            break
+        tried = [_solve(solve, problem, pattern) for pattern in patterns]
+        attempts += tried
+        better = _best(tried)
+        gain = (best.objective - better.objective) / max(abs(best.objective), 1e-12)
+        if better.status != "solved":
+            summary += "; no pattern with a switch more was solved: stopped"
+            break
+        if gain <= 0 or (wanted == "auto" and gain < GAIN):
+            summary += f"; a switch more lowered the cost by {gain:.2%}: stopped"
+            break
+        best = better
+    summary = f"{len(best.switch_times)} switch(es) ({wanted} asked): " + summary
+    return Search(tuple(attempts), best, summary)
