@@ -8,6 +8,7 @@ energy of :func:`cpopt.kinematics.link_geometry`.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import casadi as ca
@@ -16,6 +17,17 @@ import numpy as np
 from .kinematics import link_geometry
 from .mapping import mapped
 from .robot import Arm
+
+
+@dataclass(frozen=True)
+class SymbolicLink:
+    """A link whose values are CasADi symbols: the fields of :class:`cpopt.robot.Link` that
+    :func:`lagrangian` reads (length [m], mass [kg], centre of mass d [m], inertia I [kg m^2])."""
+
+    length: ca.SX
+    mass: ca.SX
+    d: ca.SX
+    I: ca.SX  # noqa: E741 - the paper's symbol
 
 
 def lagrangian(arm, q, qd) -> tuple[ca.SX, ...]:

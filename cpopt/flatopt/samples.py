@@ -27,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from .. import compiled, dynamics, flat, kinematics
-from ..dynamics import lagrangian
+from ..dynamics import SymbolicLink, lagrangian
 from ..kinematics import inverse_position_symbolic, link_geometry, reach_margin
 from ..robot import Arm
 
@@ -44,16 +44,6 @@ TAU, Q, QD, REACH = slice(0, 2), slice(2, 5), slice(5, 8), 8
 
 
 @dataclass(frozen=True)
-class ParametricLink:
-    """A link whose values are CasADi symbols (the fields :class:`cpopt.robot.Link` has)."""
-
-    length: ca.SX
-    mass: ca.SX
-    d: ca.SX
-    I: ca.SX  # noqa: E741 - the paper's symbol
-
-
-@dataclass(frozen=True)
 class ParametricArm:
     """An arm of a given kind whose parameters are the symbols :data:`ARM_PARAMETERS`."""
 
@@ -64,9 +54,9 @@ class ParametricArm:
         return self.values[ARM_PARAMETERS.index(name)]
 
     @property
-    def links(self) -> tuple[ParametricLink, ...]:
+    def links(self) -> tuple[SymbolicLink, ...]:
         return tuple(
-            ParametricLink(self[f"l{i}"], self[f"m{i}"], self[f"d{i}"], self[f"I{i}"])
+            SymbolicLink(self[f"l{i}"], self[f"m{i}"], self[f"d{i}"], self[f"I{i}"])
             for i in (1, 2, 3)
         )
 

@@ -23,7 +23,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from ..dynamics import lagrangian
+from ..dynamics import SymbolicLink, lagrangian
 from ..robot import Arm, Link
 
 COULOMB_VELOCITY_SCALE = 0.01
@@ -101,16 +101,6 @@ class Plant:
 
 
 @dataclass(frozen=True)
-class _SymbolicLink:
-    """A link whose values are CasADi symbols (the fields :func:`lagrangian` reads)."""
-
-    length: ca.SX
-    mass: ca.SX
-    d: ca.SX
-    I: ca.SX  # noqa: E741 - the paper's symbol
-
-
-@dataclass(frozen=True)
 class _SymbolicArm:
     kind: str
     base: tuple[float, float]
@@ -129,7 +119,7 @@ def plant_dynamics(kind: str, base: tuple[float, float], gravity: float) -> ca.F
     qd = ca.SX.sym("qd", 3)
     tau = ca.SX.sym("tau", 2)
     p = ca.SX.sym("p", len(PARAMETER_NAMES))
-    links = tuple(_SymbolicLink(*(p[4 * i + j] for j in range(4))) for i in range(3))
+    links = tuple(SymbolicLink(*(p[4 * i + j] for j in range(4))) for i in range(3))
     B, n, *_ = lagrangian(_SymbolicArm(kind, base, gravity, links), q, qd)
     friction = p[12:15] * qd + p[15:18] * ca.tanh(qd / COULOMB_VELOCITY_SCALE)
     force = ca.vertcat(tau, 0) - friction
