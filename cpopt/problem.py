@@ -709,6 +709,11 @@ def _file_value(spec: ProblemSpec, name: str) -> float:
     return getattr(state, field)
 
 
+def _interval(lo: float | None, hi: float | None) -> str:
+    """``[lo, hi]`` with a missing bound as -inf or inf."""
+    return f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+
+
 def _check_free(spec: ProblemSpec, free: dict, source: str) -> None:
     """Known names, bounds in order and each guess (the file's value) within its bounds."""
     names = free_value_names(len(spec.motion.via))
@@ -729,7 +734,7 @@ def _check_free(spec: ProblemSpec, free: dict, source: str) -> None:
                 source,
                 key,
                 f"the initial guess motion.{name} = {guess:g} lies outside the bounds "
-                f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]; "
+                f"{_interval(lo, hi)}; "
                 "the file's value is where the optimizer starts",
             )
 
@@ -828,9 +833,33 @@ def _check_paths(spec: ProblemSpec, arm: Arm, nodes, free: dict, source: str) ->
     for k, path in enumerate(o.path):
         key = f"optimizer.path[{k}]"
         _check_path_shape(path, key, 5 if o.smooth_torque else 4, source)
+        _check_point_bounds(path, key, source)
         points = _tied_points(arm, nodes, names, path, k, free, source)
         for i, at_end in ((k, False), (k + 1, True)):
             _check_path_end(arm, nodes[i], names[i], path, points, key, at_end, free, source)
+
+
+def _check_point_bounds(path: PathSpec, key: str, source: str) -> None:
+    """Each free control point: bounds in order, and its guess (x, y) within them."""
+    for i, point in enumerate(path.control_points):
+        if not isinstance(point, FreePointSpec):
+            continue
+        where = f"{key}.control_points[{i}]"
+        for axis, guess, (lo, hi) in zip("xy", (point.x, point.y), point.bounds, strict=True):
+            if lo is not None and hi is not None and lo > hi:
+                raise ProblemError(
+                    source,
+                    f"{where}.bounds[{'xy'.index(axis)}]",
+                    f"lower bound {lo:g} exceeds upper bound {hi:g} (bounds are [[x_lo, x_hi], "
+                    "[y_lo, y_hi]] [m])",
+                )
+            if (lo is not None and guess < lo) or (hi is not None and guess > hi):
+                raise ProblemError(
+                    source,
+                    f"{where}.{axis}",
+                    f"the initial guess {axis} = {guess:g} m lies outside the bounds "
+                    f"{_interval(lo, hi)}",
+                )
 
 
 def _tied_points(arm: Arm, nodes, names, path: PathSpec, k: int, free, source) -> np.ndarray:

@@ -124,6 +124,30 @@ def _variant(change) -> dict:
             "need >= 10",
         ),
         (
+            lambda d: d["optimizer"]["path"][0].update(
+                degree=2,
+                control_points=[
+                    [0.75, CP_HEIGHT],
+                    {"x": 1.0, "y": CP_HEIGHT, "bounds": [[2.0, 0.0], [None, None]]},
+                    [1.75, CP_HEIGHT],
+                ],
+            ),
+            "optimizer.path[0].control_points[1].bounds[0]",
+            "lower bound 2 exceeds upper bound 0",
+        ),
+        (
+            lambda d: d["optimizer"]["path"][0].update(
+                degree=2,
+                control_points=[
+                    [0.75, CP_HEIGHT],
+                    {"x": 5.0, "y": CP_HEIGHT, "bounds": [[0.0, 2.0], [None, None]]},
+                    [1.75, CP_HEIGHT],
+                ],
+            ),
+            "optimizer.path[0].control_points[1].x",
+            "the initial guess x = 5 m lies outside the bounds [0, 2]",
+        ),
+        (
             lambda d: d["motion"]["start"].update(ydot=0.5),
             "optimizer.path[0].control_points[1]",
             "start: the CP's first nonzero derivative there is its velocity y' = (0, 0.5), so "
