@@ -122,14 +122,17 @@ def gamma_is_free(node: str, free: Mapping, xi: str = "xi") -> bool:
     return any(f"{node}.{f}" in free for f in (xi, *GAMMA_FIELDS[1:]))
 
 
-def freed_fields(node: str, free: Mapping, after: bool = False) -> set[str]:
-    """The fields (:data:`NODE_FIELDS`) of a node whose values are freed; ``after`` a via
-    state's eta reset, ``eta`` stands for ``eta_after``."""
-    out = {f for f in NODE_FIELDS if f"{node}.{f}" in free}
-    if after and node.startswith("via"):
-        out.discard("eta")
-        if f"{node}.eta_after" in free:
-            out.add("eta")
+def freed_fields(name: str, free: Mapping, node: Node, after: bool = False) -> set[str]:
+    """The fields (:data:`NODE_FIELDS`) of node ``name`` whose values are freed. ``after`` a
+    via state that resets xi or eta (:func:`has_reset`), ``xi`` and ``eta`` stand for
+    ``xi_after`` and ``eta_after``; without a reset they are the values on arrival."""
+    out = {f for f in NODE_FIELDS if f"{name}.{f}" in free}
+    if after and name.startswith("via"):
+        for field in ("xi", "eta"):
+            if has_reset(node, name, field, free):
+                out.discard(field)
+                if f"{name}.{field}_after" in free:
+                    out.add(field)
     return out
 
 

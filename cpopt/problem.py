@@ -459,10 +459,26 @@ def _allowed_keys(loc) -> list[str]:
     return list(model.model_fields) if model else []
 
 
+FREE_NAME = re.compile(r"(start|goal|via\[\d+\])\.\w+")
+"""A free value's name (``via[0].xi_after``): a key of ``optimizer.free``, not a type tag."""
+
+
+def _user_keys(loc: tuple) -> tuple:
+    """The parts of a pydantic error location that are the user's keys and indices: type tags
+    (``list[...]``) and the tags of the control points' union (after an index) are dropped."""
+    keys = []
+    for part in loc:
+        tag = isinstance(part, str) and (
+            ("[" in part and not FREE_NAME.fullmatch(part))
+            or (part in UNION_TAGS and keys and isinstance(keys[-1], int))
+        )
+        if not tag:
+            keys.append(part)
+    return tuple(keys)
+
+
 def _describe(error: dict) -> tuple[str, str]:
-    loc = tuple(
-        p for p in error["loc"] if not (isinstance(p, str) and ("[" in p or p in UNION_TAGS))
-    )
+    loc = _user_keys(error["loc"])
     path = key_path(loc)
     kind = error["type"]
     given = error.get("input")
@@ -868,7 +884,7 @@ def _tied_points(arm: Arm, nodes, names, path: PathSpec, k: int, free, source) -
     points = np.array([p if isinstance(p, list) else [p.x, p.y] for p in path.control_points])
     for i, end, at_end in ((k, 0, False), (k + 1, len(points) - 1, True)):
         cp = flat.output(nodes[i].state(after=not at_end), arm.K, arm.gravity)[:, 0]
-        fixed = not {"x", "y", "theta_deg"} & freed_fields(names[i], free, not at_end)
+        fixed = not {"x", "y", "theta_deg"} & freed_fields(names[i], free, nodes[i], not at_end)
         if fixed and np.hypot(*(points[end] - cp)) > 1e-4:
             raise ProblemError(
                 source, f"optimizer.path[{k}].control_points[{end}]", f"the path's ends are "
@@ -917,7 +933,7 @@ def _check_path_end(
     guess), the ends at the nodes' CPs."""
     n = len(points)
     P = flat.output(node.state(after=not at_end), arm.K, arm.gravity)
-    freed = freed_fields(name, free, after=not at_end)
+    freed = freed_fields(name, free, node, after=not at_end)
     fields = order_fields(arm.K, arm.gravity)
     fixed = 0  # highest order whose node values and control points are all fixed
     order = [n - 1 - j for j in range(n)] if at_end else list(range(n))

@@ -326,6 +326,12 @@ BAD = [
         "did you mean 'start.theta_deg'",
     ),
     (
+        "nan bound of a free value",
+        OPT.replace("start.xi: [-40, 40]", "start.xi: [.nan, 40]"),
+        "optimizer.free.start.xi[0]",
+        "finite",
+    ),
+    (
         "gamma sign wrong at the start",
         GOOD.replace("theta_deg: 90}", "theta_deg: 90, xi: -20}", 1),
         "motion.start.xi",

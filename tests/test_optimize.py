@@ -353,3 +353,18 @@ def test_auto_switches_lower_the_transfer_cost(optimized):
     assert "auto asked" in d.search
     assert sol.metrics.min_abs_gamma >= 2.0
     assert sol.verification.closed_loop.max_cp_error < 1e-6
+
+
+def test_a_freed_via_eta_without_eta_after_stays_continuous():
+    """Freeing ``via[0].eta`` alone must not reset eta at the via state (found by review: the
+    value after it stayed the file's eta, a hidden reset and a jerk step)."""
+    data = load_problem(PROBLEMS / "swing_up_free_via.yaml").spec.model_dump()
+    del data["optimizer"]["free"]["via[0].eta_after"]
+    data["optimizer"]["samples"] = 21
+    result = optimize(parse_problem(data))
+    assert result.status == "solved"
+    via = result.plan.nodes[1]
+    assert via.eta_after is None and via.eta != pytest.approx(data["motion"]["via"][0]["eta"])
+    t = np.array([via.t])
+    before, after = (result.plan.phases[k].curve.derivatives(t, 4)[0] for k in (0, 1))
+    assert after[:, 3] == pytest.approx(before[:, 3], abs=1e-6)  # CP jerk continuous [m/s^3]

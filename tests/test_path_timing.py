@@ -189,3 +189,20 @@ def test_node_values_meet_the_plan_exactly(straight):
         got = plan.phases[0].curve.derivatives(np.array([t]), 4)[0]
         assert np.allclose(got[:, :4], flat.output(node.state(), 2 / 3, 9.81), atol=1e-9)
         assert np.allclose(got[:, 4], 0.0, atol=1e-6)  # y'''' = alpha1 e_y, pinned at 0
+
+
+def test_freed_fields_after_a_via_state_follow_its_resets():
+    """After a via state, xi and eta are the values after its resets where it has them, and
+    the values on arrival where it has none (found by review: a freed xi_after was taken for a
+    fixed value, and a freed xi counted after a fixed reset)."""
+    from cpopt.nodes import freed_fields
+    from cpopt.plan import Node
+
+    still = dict(t=1.0, x=0.75, y=1.0, theta=0.0, xdot=0.0, ydot=0.0, thetadot=0.0, eta=0.0)
+    reset = Node(**still, xi=-12.0, xi_after=0.0)
+    plain = Node(**still, xi=-12.0)
+    assert freed_fields("via[0]", {"via[0].xi": (-40, -10)}, reset, after=True) == set()
+    assert freed_fields("via[0]", {"via[0].xi": (-40, -10)}, reset) == {"xi"}
+    assert freed_fields("via[0]", {"via[0].xi_after": (-5, 5)}, reset, after=True) == {"xi"}
+    assert freed_fields("via[0]", {"via[0].xi": (-40, -10)}, plain, after=True) == {"xi"}
+    assert freed_fields("via[0]", {"via[0].eta": (-9, 9)}, plain, after=True) == {"eta"}

@@ -134,7 +134,7 @@ def zero_orders(problem: Problem, index: int, after: bool) -> tuple[int, ...]:
     chooses (they depend on no freed value); the path meets them with s^(r) = 0 exactly."""
     arm = problem.arm
     name = node_names(len(problem.nodes))[index]
-    freed = freed_fields(name, problem.free, after)
+    freed = freed_fields(name, problem.free, problem.nodes[index], after)
     P = flat.output(problem.nodes[index].state(after), arm.K, arm.gravity)
     fields = order_fields(arm.K, arm.gravity)
     return tuple(r for r in range(1, 4) if np.linalg.norm(P[:, r]) < ZERO and not fields[r] & freed)

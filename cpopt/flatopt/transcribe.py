@@ -216,13 +216,14 @@ class _Transcription:
         return [ca.MX(0.0), *(self.sym[f"{v}.t"] for v in nm[1:-1]), self.sym["duration"]]
 
     def value(self, name: str) -> ca.MX:
-        """The symbol of a node value; a via state's ``xi_after`` is its ``xi`` when the state
-        has no xi reset (:func:`cpopt.nodes.has_reset`)."""
+        """The symbol of a node value; a via state's ``xi_after`` (``eta_after``) is its ``xi``
+        (``eta``) when the state has no such reset (:func:`cpopt.nodes.has_reset`): a freed
+        value without a reset stays continuous across the node."""
         node, _, f = name.partition(".")
-        if f == "xi_after":
+        if f in ("xi_after", "eta_after"):
             i = self.names.index(node)
-            if not has_reset(self.problem.nodes[i], node, "xi", self.problem.free):
-                return self.sym[f"{node}.xi"]
+            if not has_reset(self.problem.nodes[i], node, f[: -len("_after")], self.problem.free):
+                return self.sym[f"{node}.{f[: -len('_after')]}"]
         return self.sym[name]
 
     def node_state(self, i: int, after: bool) -> ca.MX:
@@ -232,7 +233,7 @@ class _Transcription:
         values = [self.sym[f"{name}.{f}"] for f in NODE_FIELDS]
         if after and name.startswith("via"):
             values[-2] = self.value(f"{name}.xi_after")
-            values[-1] = self.sym[f"{name}.eta_after"]
+            values[-1] = self.value(f"{name}.eta_after")
         return ca.vertcat(*values)
 
     def pinned_switch(self, i: int) -> bool:
@@ -364,7 +365,7 @@ def build(
     holding = holding_pattern(problem, signs)
     names = node_names(len(problem.nodes))
     resets = tuple(
-        has_reset(node, name, "xi", problem.free)
+        (has_reset(node, name, "xi", problem.free), has_reset(node, name, "eta", problem.free))
         for name, node in zip(names[1:-1], problem.nodes[1:-1], strict=True)
     )
     key = (
