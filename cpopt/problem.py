@@ -720,8 +720,8 @@ def _file_value(spec: ProblemSpec, name: str) -> float:
     node, field = name.split(".", 1)
     m = spec.motion
     state = {"start": m.start, "goal": m.goal}.get(node) or m.via[int(node[4:-1])]
-    if field == "eta_after" and state.eta_after is None:
-        return state.eta
+    if field.endswith("_after") and getattr(state, field) is None:  # no reset in the file
+        return getattr(state, field.removesuffix("_after"))
     return getattr(state, field)
 
 

@@ -428,3 +428,13 @@ def test_a_xi_reset_makes_a_sign_change_between_phases_legal():
     arrive, leave = problem.gamma_sides
     assert [round(s.gamma, 2) for s in arrive] == [9.81, 10.31, -9.81]
     assert leave[1].gamma == pytest.approx(-10.19) and leave[1].path == "motion.via[0].xi_after"
+
+
+def test_a_freed_reset_without_a_file_value_starts_from_the_value_on_arrival(tmp_path, capsys):
+    """``via[0].xi_after`` freed with no ``xi_after`` in the file: its guess is the via state's
+    xi (found by review: the bounds check compared None with a number, a traceback)."""
+    text = OPT.replace("start.xi: [-40, 40]", "via[0].xi_after: [-5, 5]")
+    assert main(["check", str(_write(tmp_path, text))]) == 0, capsys.readouterr().err
+    text = OPT.replace("start.xi: [-40, 40]", "via[0].xi_after: [1, 5]")
+    assert main(["check", str(_write(tmp_path, text))]) == 2
+    assert "the initial guess motion.via[0].xi_after = 0.5 lies outside" in capsys.readouterr().err
