@@ -81,20 +81,10 @@ class _State:
     armed = False  # the handlers act only inside an enforced block
 
 
-def active() -> Budget | None:
-    """The budget of the :func:`enforced` block being run, if any."""
-    return _State.budget
-
-
 def check_time() -> None:
     """Raise :class:`TimeLimitExceeded` when the active budget has run out (else nothing)."""
     if _State.budget is not None:
         _State.budget.check()
-
-
-def interrupted() -> bool:
-    """True once Ctrl-C arrived inside the :func:`enforced` block being run."""
-    return _State.interrupted
 
 
 def _in_cleanup(frame) -> bool:
@@ -241,9 +231,7 @@ def hard_stop_on_interrupt(on_stop, grace: float = GRACE, code: int = 130) -> It
 __all__ = [
     "Budget",
     "TimeLimitExceeded",
-    "active",
     "check_time",
     "enforced",
     "hard_stop_on_interrupt",
-    "interrupted",
 ]

@@ -18,7 +18,7 @@ import signal
 import time
 
 from . import progress
-from .pipeline import solve
+from .pipeline import solve, time_limit_solution
 from .problem import Problem
 from .results import Solution
 
@@ -95,13 +95,11 @@ def solve_isolated(problem: Problem) -> Solution:
 
 def _killed(problem: Problem, child, stage: str, elapsed: float) -> Solution:
     child.kill()
-    message = (
-        f"wall-clock limit of {problem.max_time:g} s reached while {stage} (after "
-        f"{elapsed:.3g} s, stopped inside a call that does not check the clock, such as building "
-        "the optimizer's NLP); raise optimizer.solver.max_time or --time-limit"
+    why = (
+        ", stopped inside a call that does not check the clock, such as building the optimizer's "
+        "NLP"
     )
-    progress.stage(message)
-    return Solution(problem.name, "time_limit", problem.planner, message=message)
+    return time_limit_solution(problem, stage, elapsed, why)
 
 
 __all__ = ["GRACE", "solve_isolated"]

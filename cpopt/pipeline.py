@@ -271,18 +271,26 @@ def solve(problem: Problem) -> Solution:
 
 
 def _time_limited(problem: Problem, budget: Budget, partial: StageRecord) -> Solution:
-    message = (
-        f"wall-clock limit of {budget.seconds:g} s reached while {partial.stage} "
-        f"(after {budget.elapsed:.3g} s); raise optimizer.solver.max_time or --time-limit"
-    )
-    progress.stage(message)
-    return Solution(
-        problem.name,
-        "time_limit",
-        problem.planner,
+    return time_limit_solution(
+        problem,
+        partial.stage,
+        budget.elapsed,
         plan=partial.plan,
         trajectory=partial.trajectory,
         metrics=partial.metrics,
         solver=partial.solver,
-        message=message,
     )
+
+
+def time_limit_solution(
+    problem: Problem, stage: str, elapsed: float, why: str = "", **partial
+) -> Solution:
+    """Status ``time_limit``: what was reached by then (``partial``: plan, trajectory, ...),
+    the stage the limit struck in and the elapsed time [s] (``why``: how it was stopped),
+    reported to progress as well."""
+    message = (
+        f"wall-clock limit of {problem.max_time:g} s reached while {stage} "
+        f"(after {elapsed:.3g} s{why}); raise optimizer.solver.max_time or --time-limit"
+    )
+    progress.stage(message)
+    return Solution(problem.name, "time_limit", problem.planner, message=message, **partial)

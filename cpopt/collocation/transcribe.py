@@ -44,9 +44,8 @@ def _cold_guess(problem: Problem, t: np.ndarray) -> tuple[np.ndarray, ...]:
     return q, qd, tau
 
 
-def _warm_guess(plan, t: np.ndarray) -> tuple[np.ndarray, ...]:
-    """A flat plan's joint motion and torques at times t."""
-    traj = sample(plan, per_phase=401)
+def _warm_guess(traj, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A sampled flat plan's joint motion and torques at times t."""
     keep = np.r_[np.diff(traj.t) > 0, True]
     tt = traj.t[keep]
 
@@ -227,8 +226,10 @@ def transcription(problem: Problem, intervals: int, gamma_constraint: bool, warm
     """
     sign = _sign(problem, warm_start)
 
+    traj = sample(warm_start, per_phase=401) if warm_start else None  # once, for every stage
+
     def guess(t):
-        return _warm_guess(warm_start, t) if warm_start else _cold_guess(problem, t)
+        return _warm_guess(traj, t) if warm_start else _cold_guess(problem, t)
 
     key = (problem.spec.model_dump_json(), intervals, gamma_constraint, sign)
     if warm_start is None and key in _CACHE:

@@ -196,10 +196,10 @@ def assemble(
     f_x, g_x = cheap["value"](x, p, y)
     y_jac, J = samples.map("sample_jac")
     JY = samples.jacobian(J)
-    _, fx, fy = cheap["grad"](x, p, y_jac)
+    f_j, fx, fy = cheap["grad"](x, p, y_jac)  # sample_jac's y: one library call, not two
     gj, gx, gy = cheap["jac"](x, p, y_jac)
     options = {
-        "grad_f": ca.Function("grad_f", [x, p], [f_x, fx + ca.mtimes(JY.T, fy)]),
+        "grad_f": ca.Function("grad_f", [x, p], [f_j, fx + ca.mtimes(JY.T, fy)]),
         "jac_g": ca.Function("jac_g", [x, p], [gj, gx + ca.mtimes(gy, JY)]),
         "hess_lag": _hessian(x, p, cheap, samples, curvature),
         # the library has no CasADi derivatives: nlpsol must not differentiate f or g itself

@@ -59,6 +59,11 @@ would otherwise collapse onto it, and a path with a vanishing end tangent meets 
 directional conditions trivially (every normal residual is a cross product with Y')."""
 
 
+def timing_basis(path: PathSpec) -> SplineBasis:
+    """The basis of a phase's timing law s(t) on the phase's normalised time."""
+    return SplineBasis(path.timing.degree, path.timing.coefficients)
+
+
 @dataclass(frozen=True)
 class PathTimingCurve:
     """One phase's CP curve y(t) = Y(s(t)) as CasADi expressions of the decision variables.
@@ -125,7 +130,7 @@ def to_pieces(path: PathSpec, packed: np.ndarray, t0: float, h: float):
     """A solved phase as exact polynomial pieces (a :class:`cpopt.paths.TimedPath`)."""
     points, coefficients = unpack(path, packed)
     shape = PathShape(path.degree, len(path.control_points))
-    timing = SplineBasis(path.timing.degree, path.timing.coefficients)
+    timing = timing_basis(path)
     return compose(shape, points, timing, coefficients, t0, h)
 
 
@@ -198,7 +203,7 @@ def _end_timing(jet, zeros: tuple, Y, start: bool, h):
 def _timing(path: PathSpec, k: int, ends: list, h, layout: Layout) -> ca.MX:
     """Timing coefficients: the ends eliminated (triangular solves keep the structural zeros
     of a node where the CP's first derivatives vanish), the inner ones decisions."""
-    basis = SplineBasis(path.timing.degree, path.timing.coefficients)
+    basis = timing_basis(path)
     (head, _), (tail, _) = ends
     r0, r1 = int(head.numel()), int(tail.numel())
     E0 = basis.end_matrices(r0)[0]
@@ -274,9 +279,7 @@ def phase_curve(
     keep = [i for i in range(m - 1) if ca.symvar(steps[i])]
     if keep:
         g.add(steps[keep], 0, ca.inf, f"timing s' >= 0 (phase {k + 1})", [where[i] for i in keep])
-    return PathTimingCurve(
-        shape, SplineBasis(path.timing.degree, path.timing.coefficients), points, c, h
-    )
+    return PathTimingCurve(shape, timing_basis(path), points, c, h)
 
 
 def _tangent_constraint(g, tangent, points, layout: Layout, k: int, name: str, where) -> None:
@@ -303,7 +306,7 @@ def initial_blocks(problem: Problem) -> dict[str, np.ndarray]:
         for i, point in enumerate(path.control_points):
             if not isinstance(point, list):
                 out[f"phase[{k}].control_points[{i}]"] = np.array([point.x, point.y])
-        basis = SplineBasis(path.timing.degree, path.timing.coefficients)
+        basis = timing_basis(path)
         knots, e = basis.knots, basis.degree
         greville = np.array([knots[i + 1 : i + 1 + e].mean() for i in range(basis.count)])
         smooth = np.polynomial.Polynomial([0, 0, 0, 0, 0, 126, -420, 540, -315, 70])(greville)
@@ -324,7 +327,7 @@ def timing_guess(path: PathSpec, coefficients: np.ndarray, rows: tuple[int, int]
     rows : tuple of int
         The inner coefficients [lo, hi).
     """
-    basis = SplineBasis(path.timing.degree, path.timing.coefficients)
+    basis = timing_basis(path)
     c = np.asarray(coefficients, float).ravel()
     lo, hi = rows
     head = [basis.matrix([0.0], r)[0] @ c for r in range(lo)]
@@ -347,6 +350,7 @@ __all__ = [
     "initial_blocks",
     "phase_curve",
     "structure",
+    "timing_basis",
     "timing_guess",
     "to_pieces",
     "unpack",

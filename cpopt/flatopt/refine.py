@@ -80,9 +80,13 @@ def between_samples(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     return [set(sorted(f)[:: max(1, len(f) // 8)]) for f in merged]
 
 
-def integrand(problem: Problem, P: np.ndarray, y: np.ndarray) -> np.ndarray | None:
-    """The weighted integrand of the objective's integral terms at samples (None if the
-    objective has none).
+INTEGRAL_TERMS = frozenset({"torque", "energy", "v_squared"})
+"""The objective terms that are integrals over the motion (the quadrature's business)."""
+
+
+def integrand(problem: Problem, P: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The weighted integrand of the objective's integral terms at samples (an objective
+    with none has none: see :data:`INTEGRAL_TERMS`).
 
     Parameters
     ----------
@@ -97,13 +101,14 @@ def integrand(problem: Problem, P: np.ndarray, y: np.ndarray) -> np.ndarray | No
         "energy": lambda: abs_power(y[:, TAU].T, y[:, QD].T),
         "v_squared": lambda: squared_norm(P[:, :, 4].T),
     }
-    used = [w[k] * terms[k]() for k in terms if k in w]
-    return sum(used) if used else None
+    return sum(w[k] * terms[k]() for k in terms if k in w)
 
 
 def quadrature_gaps(problem: Problem, plan: CPPlan, nlp: FlatNLP) -> list[set[int]]:
     """Per phase, the pieces whose quadrature differs from the fine integral of the plan by
     more than :data:`QUADRATURE_TOL` of the whole fine integral."""
+    if not INTEGRAL_TERMS & set(weights(problem.spec.optimizer.objective)):
+        return [set() for _ in plan.phases]
     per_phase = []
     total = 0.0
     for ph, samples in zip(plan.phases, nlp.samples, strict=True):
@@ -114,8 +119,6 @@ def quadrature_gaps(problem: Problem, plan: CPPlan, nlp: FlatNLP) -> list[set[in
         s = np.concatenate([samples.s[: samples.quadrature], *(rule[0] for rule in fine)])
         P = curve.derivatives(curve.t0 + s * h, 4)
         f = integrand(problem, P, sample_values(plan.arm, P, ph.sigma))
-        if f is None:
-            return [set() for _ in plan.phases]
         m = samples.quadrature
         quad = np.bincount(samples.piece, weights=samples.weights * f[:m], minlength=pieces)
         exact = (f[m:].reshape(pieces, -1) * np.stack([rule[1] for rule in fine])).sum(axis=1)

@@ -29,7 +29,6 @@ block diagonal (10 x 10 per sample).
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -140,8 +139,6 @@ class FlatNLP:
         ``(x, p) -> g``.
     samples : tuple of PhaseSamples
         Where each phase is sampled.
-    build_time : float
-        Seconds spent building [s].
     reporter : IterationReporter
         The solver's iteration callback (progress, clean stops).
     """
@@ -156,7 +153,6 @@ class FlatNLP:
     lift: ca.Function
     constraints: ca.Function
     samples: tuple
-    build_time: float
     reporter: IterationReporter
 
     def parameters(self, values: dict) -> np.ndarray:
@@ -340,7 +336,7 @@ def initial_grids(problem: Problem) -> tuple[Grid, ...]:
     """Each phase's sample grid before any refinement (:mod:`cpopt.flatopt.quadrature`)."""
     o = problem.spec.optimizer
     if o.curve == "path_timing":  # the timing law's pieces (the path's knots move with it)
-        bases = [SplineBasis(p.timing.degree, p.timing.coefficients) for p in o.path]
+        bases = [path_timing.timing_basis(p) for p in o.path]
     else:
         bases = [SplineBasis(o.degree, coefficient_count(o))] * (len(problem.nodes) - 1)
     return tuple(Grid(piece_counts(o.samples, b.breaks.size - 1)) for b in bases)
@@ -379,7 +375,6 @@ def build(
         _settings_key(problem),
     )
     if key not in _CACHE:
-        start = time.perf_counter()
         sym = {n: ca.MX.sym(n) for n in problem.values}
         tr = _Transcription(problem, signs, holding, sym)
         _decisions(tr)
@@ -388,7 +383,7 @@ def build(
         _switch_constraints(tr)
         _holding_constraints(tr)
         _whole_motion_terms(tr)
-        _CACHE[key] = _finish(tr, start)
+        _CACHE[key] = _finish(tr)
     return _CACHE[key]
 
 
@@ -642,7 +637,7 @@ def _consistent_lifts(tr: _Transcription) -> ca.MX:
     )
 
 
-def _finish(tr: _Transcription, start: float) -> FlatNLP:
+def _finish(tr: _Transcription) -> FlatNLP:
     """Assemble the NLP and its helper functions, create the solver."""
     o = tr.settings
     w = weights(o.objective)
@@ -679,6 +674,5 @@ def _finish(tr: _Transcription, start: float) -> FlatNLP:
         lift=ca.Function("lift", [x_core, p], [_consistent_lifts(tr)]),
         constraints=ca.Function("constraints", [x, p], [nlp.g]),
         samples=tuple(tr.samples),
-        build_time=time.perf_counter() - start,
         reporter=reporter,
     )

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import flat
 from ..bspline import SplineBasis, fit
 from ..nodes import has_reset, node_names, nodes_from_values
 from ..plan import CPPlan, SingularPlanError, closed_form
@@ -28,13 +29,12 @@ def initial_plan(problem: Problem, signs: tuple[int, ...]) -> CPPlan:
     values = problem.values
     xis = {}
     for i, name in enumerate(node_names(len(problem.nodes))):
-        thetadot, theta = values[f"{name}.thetadot_deg"], values[f"{name}.theta_deg"]
         sides = [("xi", name, signs[max(i - 1, 0)])]
         if name.startswith("via") and has_reset(problem.nodes[i], name, "xi", problem.free):
             sides.append(("xi_after", f"{name}.xi_after", signs[i]))
         for field, key, sign in sides:
             xi = values[f"{name}.{field}"]
-            gamma = xi - K * thetadot**2 + g0 * np.sin(theta)
+            gamma = flat.gamma(problem.nodes[i].state(after=field == "xi_after"), K, g0)
             if sign * gamma < gamma_min and f"{name}.{field}" in problem.free:
                 xi += sign * (gamma_min + 2.0) - gamma
             xis[key] = xi
