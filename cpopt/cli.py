@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import threading
 from pathlib import Path
@@ -272,6 +273,17 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
 
 
+def own_ctrl_c() -> None:
+    """Make Ctrl-C mean "stop cleanly, exit 130" however the process was started.
+
+    A process started as a background job of a non-interactive shell inherits SIGINT as
+    ignored, and Python then installs no KeyboardInterrupt handler: the signal would never
+    arrive. The command line installs Python's own handler at start-up (main thread only).
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def run() -> None:
     """The ``cpopt`` process: :func:`main`, then exit with its code.
 
@@ -279,6 +291,7 @@ def run() -> None:
     KeyboardInterrupt that was caught inside an interrupted import into death by SIGINT at
     shutdown (exit status -2 instead of 130).
     """
+    own_ctrl_c()
     code = main()
     if code == EXIT_INTERRUPTED:
         sys.stdout.flush()

@@ -201,11 +201,37 @@ class _Loader(_LimitedComposer, *_PARSING, yaml.constructor.SafeConstructor, _Re
 def parse_yaml(text: str):
     """Parse one YAML document with the limits of this module.
 
+    The limits and their messages are cpopt's whatever the PyYAML version: when PyYAML stops
+    first (6.0.4 refuses nesting past 1000 levels while it scans ahead, before any node reaches
+    this module's composer), the text it accepted is composed again, and a limit of this
+    module found there is reported with its key path instead of PyYAML's words.
+
     Raises
     ------
     YamlInputError
         For malformed YAML, a limit exceeded or a duplicate key (with its key path).
     """
+    try:
+        return _parse(text)
+    except _Malformed as err:
+        if err.index:
+            try:
+                _parse(text[: err.index])
+            except YamlInputError as first:
+                if not isinstance(first, _Malformed):
+                    raise first from None
+        raise YamlInputError(err.path, err.message) from None
+
+
+class _Malformed(YamlInputError):
+    """PyYAML's own refusal, with the index in the text where it stopped (0 if unknown)."""
+
+    def __init__(self, message: str, index: int = 0) -> None:
+        super().__init__("", message)
+        self.index = index
+
+
+def _parse(text: str):
     loader = _Loader(text)
     try:
         loader.get_event()  # stream start
@@ -218,11 +244,12 @@ def parse_yaml(text: str):
     except yaml.MarkedYAMLError as err:
         mark = err.problem_mark
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise YamlInputError("", f"malformed YAML{where}: {cut(err.problem or '')}") from None
+        message = f"malformed YAML{where}: {cut(err.problem or '')}"
+        raise _Malformed(message, mark.index if mark else 0) from None
     except (yaml.YAMLError, ValueError, OverflowError) as err:
         if isinstance(err, YamlInputError):
             raise
-        raise YamlInputError("", f"malformed YAML: {cut(str(err))}") from None
+        raise _Malformed(f"malformed YAML: {cut(str(err))}") from None
     finally:
         loader.dispose()
 
