@@ -213,17 +213,17 @@ def parse_yaml(text: str):
     """
     try:
         return _parse(text)
-    except _Malformed as err:
+    except _MalformedError as err:
         if err.index:
             try:
                 _parse(text[: err.index])
             except YamlInputError as first:
-                if not isinstance(first, _Malformed):
+                if not isinstance(first, _MalformedError):
                     raise first from None
         raise YamlInputError(err.path, err.message) from None
 
 
-class _Malformed(YamlInputError):
+class _MalformedError(YamlInputError):
     """PyYAML's own refusal, with the index in the text where it stopped (0 if unknown)."""
 
     def __init__(self, message: str, index: int = 0) -> None:
@@ -245,11 +245,11 @@ def _parse(text: str):
         mark = err.problem_mark
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         message = f"malformed YAML{where}: {cut(err.problem or '')}"
-        raise _Malformed(message, mark.index if mark else 0) from None
+        raise _MalformedError(message, mark.index if mark else 0) from None
     except (yaml.YAMLError, ValueError, OverflowError) as err:
         if isinstance(err, YamlInputError):
             raise
-        raise _Malformed(f"malformed YAML: {cut(str(err))}") from None
+        raise _MalformedError(f"malformed YAML: {cut(str(err))}") from None
     finally:
         loader.dispose()
 
