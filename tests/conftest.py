@@ -13,6 +13,20 @@ from cpopt.problem import load_problem
 
 ROOT = Path(__file__).resolve().parent.parent
 PROBLEMS = ROOT / "problems"
+VERSIONS = ("casadi", "rockit-meco", "numpy", "scipy", "matplotlib", "PyYAML", "pydantic")
+"""The dependencies whose versions a run reports (CI installs the newest allowed ones)."""
+
+
+def pytest_report_header(config):
+    from importlib.metadata import PackageNotFoundError, version
+
+    def said(name: str) -> str:
+        try:
+            return f"{name} {version(name)}"
+        except PackageNotFoundError:
+            return f"{name} (not installed)"
+
+    return "cpopt dependencies: " + ", ".join(said(n) for n in VERSIONS)
 
 
 @pytest.fixture(scope="session")
