@@ -38,7 +38,7 @@ reuse the solver; a failed solve is not repeated), and prints
 
 Usage::
 
-    pip install -e '.[peers]'
+    pip install -e .
     python benchmarks/vs_collocation.py            # full run (several minutes)
     python benchmarks/vs_collocation.py --quick    # one repetition, small sizes (a test)
 """

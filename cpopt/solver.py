@@ -201,9 +201,11 @@ class IterationReporter(ca.Callback):
     def get_sparsity_in(self, i: int) -> ca.Sparsity:
         return ca.Sparsity.dense(self.sizes.get(ca.nlpsol_out(i), 0), 1)
 
-    def start(self, label: str) -> None:
-        """Reset the count for a new run called ``label``."""
-        self.count, self.label, self.stop = 0, label, None
+    def start(self, label: str, limit: int | None = None) -> None:
+        """Reset the count for a new run called ``label``, stopped after ``limit`` iterations
+        if given (a cap below the solver's own ``max_iter``, without rebuilding the solver)."""
+        self.count, self.label, self.stop, self.limit = 0, label, None, limit
+        self.capped = False
 
     def eval(self, arg) -> list:
         self.count += 1
@@ -211,27 +213,35 @@ class IterationReporter(ca.Callback):
             progress.iteration(self.count, self.label)
         except BaseException as stop:  # Ctrl-C or the time limit: stop Ipopt, raise later
             self.stop = stop
-        return [1 if self.stop is not None else 0]
+        self.capped = self.limit is not None and self.count > self.limit
+        return [1 if self.stop is not None or self.capped else 0]
 
 
 def run_nlp(
-    solver: ca.Function, reporter: IterationReporter | None = None, label: str = "", **arguments
+    solver: ca.Function,
+    reporter: IterationReporter | None = None,
+    label: str = "",
+    limit: int | None = None,
+    **arguments,
 ) -> NlpRun:
     """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg).
 
     ``reporter`` is the solver's :class:`IterationReporter`, if it has one; ``label`` names the
-    run in progress lines and above Ipopt's output (``--verbose``).
+    run in progress lines and above Ipopt's output (``--verbose``); ``limit`` caps the
+    iterations through the reporter (a run stopped there is ``max_iterations``).
     """
     if label:
         progress.ipopt_run(label)
     if reporter is not None:
-        reporter.start(label)
+        reporter.start(label, limit)
     start = time.perf_counter()
     solution = solver(**arguments)
     elapsed = time.perf_counter() - start
     if reporter is not None and reporter.stop is not None:
         raise reporter.stop
     ipopt, status, iterations = read_stats(solver.stats())
+    if reporter is not None and reporter.capped:
+        ipopt, status = f"Iteration_Cap_{limit}", "max_iterations"
     return NlpRun(
         x=np.asarray(solution["x"]).ravel(),
         objective=float(solution["f"]),

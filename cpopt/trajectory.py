@@ -120,6 +120,9 @@ class Metrics:
         ``start`` and ``goal`` rest ends [N m or N]
     reset_torque_jump : largest torque step at a via state that resets xi (0 without one)
         [N m or N]
+    gamma_sign_changes : times where gamma changes sign [s]: a flat plan's switches (a xi
+        reset steps gamma across zero, never through it), a collocation plan's crossings
+        through zero, read between its knots (its ``min_abs_gamma`` is then 0)
     """
 
     torque_sq_integral: float
@@ -133,6 +136,7 @@ class Metrics:
     max_passive_residual: float
     torque_jumps: tuple = ()
     reset_torque_jump: float = 0.0
+    gamma_sign_changes: tuple[float, ...] = ()
 
     def as_dict(self) -> dict:
         """The metrics as a plain dict (JSON-ready)."""
@@ -146,6 +150,7 @@ class Metrics:
             "max_torque_jump": self.max_torque_jump,
             "reset_torque_jump": self.reset_torque_jump,
             "torque_jumps": dict(self.torque_jumps),
+            "gamma_sign_changes": list(self.gamma_sign_changes),
         }
 
 
@@ -191,4 +196,18 @@ def metrics(plan: CPPlan, traj: Trajectory) -> Metrics:
         max_passive_residual=float(np.abs(traj.residual).max()),
         torque_jumps=tuple((where, size) for where, _, size in jumps),
         reset_torque_jump=max((j[2] for j in jumps if j[0] in resets), default=0.0),
+        gamma_sign_changes=tuple(
+            float(plan.nodes[k].t)
+            for k in range(1, len(plan.phases))
+            if plan.phases[k].sigma != plan.phases[k - 1].sigma
+        ),
     )
+
+
+def gamma_crossings(t: np.ndarray, gamma: np.ndarray) -> tuple[float, ...]:
+    """Every time [s] a sampled gamma changes sign, interpolated linearly between samples."""
+    out = []
+    for i in np.nonzero(np.sign(gamma[:-1]) * np.sign(gamma[1:]) < 0)[0]:
+        g0, g1 = gamma[i], gamma[i + 1]
+        out.append(float(t[i] + (t[i + 1] - t[i]) * g0 / (g0 - g1)))
+    return tuple(out)

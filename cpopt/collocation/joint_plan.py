@@ -17,7 +17,7 @@ from ..mapping import mapped
 from ..plan import Node
 from ..robot import Arm
 from ..simulate import SimulationResult, cp_of, goal_error, pose_states
-from ..trajectory import Metrics, Trajectory
+from ..trajectory import Metrics, Trajectory, gamma_crossings
 
 REFINE = 8
 """Samples per interval of the collocation polynomials in the trajectory."""
@@ -141,13 +141,16 @@ def joint_trajectory(plan: JointPlan) -> Trajectory:
 def joint_metrics(plan: JointPlan, traj: Trajectory) -> Metrics:
     """:class:`Metrics` of a collocation plan: exact torque integral, the rest on the samples.
 
-    ``min_abs_gamma`` is the smallest |gamma| on the samples (not certified between them);
+    ``min_abs_gamma`` is the smallest |gamma| on the samples (not certified between them), and
+    0 where gamma changes sign between two samples (``gamma_sign_changes``: the crossings);
     ``torque_jumps`` are the largest step at a knot (``knots``) and, at a rest start or goal,
     the step from or to the holding torque.
     """
     tau = traj.tau
     power = np.abs(tau[:, 0] * traj.qd[:, 0]) + np.abs(tau[:, 1] * traj.qd[:, 1])
     i = int(np.argmin(np.abs(traj.gamma)))
+    # gamma through zero between two samples: |gamma| = 0 there, not the samples' smallest
+    crossings = gamma_crossings(traj.t, traj.gamma)
     jumps = [("knots", float(np.abs(np.diff(plan.tau, axis=0)).max(initial=0.0)))]
     problem_nodes = (plan.nodes[0], plan.nodes[-1])
     for node, k, name in ((problem_nodes[0], 0, "start"), (problem_nodes[1], -1, "goal")):
@@ -159,13 +162,14 @@ def joint_metrics(plan: JointPlan, traj: Trajectory) -> Metrics:
         torque_sq_integral=plan.torque_sq_integral(),
         abs_power_integral=float(np.trapezoid(power, traj.t)),
         peak_torque=(float(np.abs(tau[:, 0]).max()), float(np.abs(tau[:, 1]).max())),
-        min_abs_gamma=float(np.abs(traj.gamma[i])),
-        min_abs_gamma_time=float(traj.t[i]),
+        min_abs_gamma=0.0 if crossings else float(np.abs(traj.gamma[i])),
+        min_abs_gamma_time=crossings[0] if crossings else float(traj.t[i]),
         theta_min_deg=float(theta_deg.min()),
         theta_max_deg=float(theta_deg.max()),
         max_torque_jump=max(j[1] for j in jumps),
         max_passive_residual=0.0,
         torque_jumps=tuple(jumps),
+        gamma_sign_changes=crossings,
     )
 
 

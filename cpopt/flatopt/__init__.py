@@ -28,6 +28,7 @@ from ..objectives import weights
 from ..plan import CPPlan, Phase
 from ..problem import Problem
 from ..solver import SolverStats, run_nlp
+from ..trajectory import Trajectory
 from . import switching
 from .path_timing import chosen_points
 from .refine import (
@@ -37,8 +38,9 @@ from .refine import (
     quadrature_gaps,
     violations,
 )
+from .seeded import search as seeded_search
 from .transcribe import FlatNLP, build, initial_grids, phase_pieces
-from .warm_start import initial_guess
+from .warm_start import initial_guess, seeded_guess
 
 SIGN_NAMES = {1: "positive", -1: "negative"}
 """The words for the signs of gamma, as ``gamma_sign`` spells them."""
@@ -104,6 +106,10 @@ class FlatDetails:
         Every pattern of signs (and switches) solved, in the order tried.
     search : str
         How the pattern was chosen, in one line.
+    search_figures : dict
+        ``solver.search`` in ``solution.json``: the method (``seed``, ``greedy``, or only a
+        summary without switches) and the seeded search's stages (seed, flat, polish) with
+        their iterations and wall times [s].
     """
 
     gamma_signs: tuple[str, ...]
@@ -113,6 +119,7 @@ class FlatDetails:
     sign_choices: tuple[SignAttempt, ...]
     search: str = ""
     certification: str = CERTIFICATION
+    search_figures: dict = field(default_factory=dict)
 
     @property
     def gamma_sign(self) -> str:
@@ -125,7 +132,7 @@ class FlatDetails:
             "gamma_sign": self.gamma_sign,
             "gamma_signs": list(self.gamma_signs),
             "switch_times": list(self.switch_times),
-            "search": self.search,
+            "search": self.search_figures or {"summary": self.search},
             "certified_min_abs_gamma": self.certified_min_abs_gamma,
             "certification": self.certification,
             "refinements": self.refinements,
@@ -228,6 +235,8 @@ def solve_for_signs(
     problem: Problem,
     signs: tuple[int, ...],
     switches: tuple[int, ...] = (),
+    seed: Trajectory | None = None,
+    limit: int | None = None,
 ) -> SignAttempt:
     """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
     the margin is certified.
@@ -240,6 +249,11 @@ def solve_for_signs(
         The sign of gamma of each phase, +1 or -1.
     switches : tuple of int
         The indices of the nodes the optimizer added (:func:`cpopt.nodes.node_names`).
+    seed : Trajectory, optional
+        A trajectory to start from (:func:`~cpopt.flatopt.warm_start.seeded_guess`) instead of
+        the closed form through the nodes.
+    limit : int, optional
+        Most Ipopt iterations over all rounds (a cheap attempt of the search's polish).
     """
     grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
@@ -253,11 +267,18 @@ def solve_for_signs(
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
-        x0 = initial_guess(nlp, problem, signs) if x0 is None else nlp.complete(x0, p)
+        if x0 is None:
+            x0 = (
+                initial_guess(nlp, problem, signs)
+                if seed is None
+                else seeded_guess(nlp, problem, signs, seed)
+            )
+        else:
+            x0 = nlp.complete(x0, p)
         lbx, ubx = _bounds(nlp, problem)
-        run = run_nlp(
-            nlp.solver, nlp.reporter, label, x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg
-        )
+        left = None if limit is None else max(limit - iterations, 1)
+        arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+        run = run_nlp(nlp.solver, nlp.reporter, label, left, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
         plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
@@ -305,7 +326,9 @@ def optimize(problem: Problem) -> OptimizeResult:
         failed solve returns Ipopt's best iterate, its status and the violated constraints by
         name and time.
     """
-    search = switching.search(problem, solve_for_signs)
+    o = problem.spec.optimizer
+    seeded = o.gamma_switches != 0 and o.switch_search == "seed"
+    search = (seeded_search if seeded else switching.search)(problem, solve_for_signs)
     attempts, best = search.attempts, search.best
     if len(set(best.signs)) == 1:
         message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
@@ -328,6 +351,7 @@ def optimize(problem: Problem) -> OptimizeResult:
             refinements=best.refinements,
             sign_choices=tuple(attempts),
             search=search.summary,
+            search_figures=search.figures,
         ),
     )
     return OptimizeResult(status=best.status, plan=best.plan, solver=stats)

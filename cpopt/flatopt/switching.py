@@ -21,16 +21,21 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..plan import Node
 from ..problem import MAX_SWITCHES, Problem
+from .seed import Seed
 
 GAIN = 0.01
 """``auto`` keeps a switch only when it lowers the cost by at least this fraction."""
+GRID = 801
+"""Times over the motion on which patterns of signs are compared."""
+POLISH_LIMIT = 150
+"""Most Ipopt iterations of one polish attempt: a neighbour that needs more is not cheap."""
 SWITCH_FIELDS = (*NODE_FIELDS, "xi_after", "eta_after", "t")
 """The values of a switch the optimizer chooses: the whole state, xi and eta on both sides
 and the time."""
@@ -55,11 +60,14 @@ class Pattern:
 
 @dataclass(frozen=True)
 class Search:
-    """Every pattern solved, the best one, and how the search ended."""
+    """Every pattern solved, the best one, how the search ended, and its figures for
+    ``solution.json`` (``solver.search``: the method, and for the seeded search the seed's,
+    the flat solve's and the polish's iterations and times)."""
 
     attempts: tuple
     best: object
     summary: str
+    figures: dict = field(default_factory=dict)
 
 
 def _phases(problem: Problem, times: tuple[float, ...]) -> list[tuple[int, float, float]]:
@@ -156,13 +164,16 @@ def _interpolated(problem: Problem, t: float) -> np.ndarray:
     return (1 - s) * a + s * b
 
 
-def with_switches(problem: Problem, times: tuple[float, ...]) -> tuple[Problem, tuple[int, ...]]:
+def with_switches(
+    problem: Problem, times: tuple[float, ...], free_times: bool = True
+) -> tuple[Problem, tuple[int, ...]]:
     """The problem with switches added at ``times``, and their indices among its nodes.
 
     A switch's values are free (its time between its neighbours, kept ``MIN_PHASE`` apart by
-    the NLP); their initial guess is the file's node states interpolated linearly (the warm
-    start then moves xi before and after it to the signs' sides). The file's via states keep
-    their values and freed names, renumbered.
+    the NLP, unless ``free_times`` is False: then it stays at ``times``); their initial guess
+    is the file's node states interpolated linearly (the warm start then moves xi before and
+    after it to the signs' sides). The file's via states keep their values and freed names,
+    renumbered.
     """
     files = problem.nodes
     nodes, index, switches = [files[0]], {}, []
@@ -180,8 +191,9 @@ def with_switches(problem: Problem, times: tuple[float, ...]) -> tuple[Problem, 
     for name, bounds in problem.free.items():
         node, dot, f = name.partition(".")
         free[f"{renamed.get(node, node)}{dot}{f}"] = bounds
+    fields = SWITCH_FIELDS if free_times else SWITCH_FIELDS[:-1]
     for i in switches:
-        free.update({f"{new[i]}.{f}": (-math.inf, math.inf) for f in SWITCH_FIELDS})
+        free.update({f"{new[i]}.{f}": (-math.inf, math.inf) for f in fields})
     return replace(problem, nodes=tuple(nodes), free=free), tuple(switches)
 
 
@@ -241,9 +253,9 @@ def _carried(problem: Problem, old: Pattern, times: tuple[float, ...]) -> list[i
 def _inside(problem: Problem, times: tuple[float, ...], t: float) -> float | None:
     """t moved at least MIN_PHASE away from the nodes and switches around it, or None."""
     marks = sorted({n.t for n in problem.nodes} | set(times))
-    lo = max(m for m in marks if m <= t)
-    hi = min(m for m in marks if m >= t)
-    if hi - lo < 2 * MIN_PHASE:
+    lo = max((m for m in marks if m <= t), default=None)
+    hi = min((m for m in marks if m >= t), default=None)
+    if lo is None or hi is None or hi - lo < 2 * MIN_PHASE:
         return None
     return min(max(t, lo + MIN_PHASE), hi - MIN_PHASE)
 
@@ -284,6 +296,65 @@ def next_patterns(problem: Problem, old: Pattern, stretch: Stretch) -> list[Patt
     middle = next(i for i, ph in enumerate(_phases(problem, times)) if ph[1] == first)
     signs = tuple(-s if i == middle else s for i, s in enumerate(carried))
     return [Pattern(times, signs)] if signs in sign_assignments(problem, times) else []
+
+
+def within_budget(times: tuple[float, ...], budget: int, duration: float) -> tuple[float, ...]:
+    """At most ``budget`` switch times: the closest pair cancels while two or more are too
+    many, then the crossing nearest an end of the motion goes."""
+    kept = sorted(times)
+    while len(kept) > budget:
+        if len(kept) - budget >= 2:
+            j = int(np.argmin(np.diff(kept)))
+            del kept[j : j + 2]
+        else:
+            kept.remove(min(kept, key=lambda t: min(t, duration - t)))
+    return tuple(kept)
+
+
+def agreeing(problem: Problem, times: tuple[float, ...], wanted: np.ndarray) -> Pattern | None:
+    """Of the signs the pins allow for switches at ``times``, the pattern that agrees with the
+    signs ``wanted`` on :data:`GRID` equally spaced times over the motion the longest; None
+    when the pins allow none."""
+    allowed = sign_assignments(problem, times)
+    if not allowed:
+        return None
+    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
+    cuts = np.array([b for _, _, b in _phases(problem, times)[:-1]])
+    phase = np.searchsorted(cuts, t, side="right")
+    return Pattern(
+        times, max(allowed, key=lambda signs: int(np.sum(np.take(signs, phase) == wanted)))
+    )
+
+
+def seed_pattern(problem: Problem, seed: Seed, budget: int) -> Pattern | None:
+    """The pattern a seed suggests: its crossings (at most ``budget``) and, of the signs the pins
+    allow for them, the one that agrees with the sign of the seed's gamma the longest."""
+    times = within_budget(seed.report.switch_times, budget, problem.nodes[-1].t)
+    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
+    return agreeing(
+        problem, times, np.where(np.interp(t, seed.trajectory.t, seed.trajectory.gamma) >= 0, 1, -1)
+    )
+
+
+def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
+    """The patterns one switch away: two adjacent switches merged (the short stretch between
+    them takes its neighbours' sign), then each switch dropped, the shortest stretch first;
+    each with the signs that agree with ``old`` the longest."""
+    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
+    cuts = np.array([b for _, _, b in _phases(problem, old.times)[:-1]])
+    wanted = np.take(old.signs, np.searchsorted(cuts, t, side="right"))
+    times = sorted(old.times)
+    merged = [(times[j + 1] - times[j], (j, j + 1)) for j in range(len(times) - 1)]
+    bounds = [0.0, *times, problem.nodes[-1].t]
+    dropped = [(min(bounds[j + 1] - bounds[j], bounds[j + 2] - bounds[j + 1]), (j,))
+               for j in range(len(times))]  # fmt: skip
+    out = []
+    for _, gone in sorted(merged) + sorted(dropped):
+        kept = tuple(x for j, x in enumerate(times) if j not in gone)
+        pattern = agreeing(problem, kept, wanted)
+        if pattern is not None and pattern not in out:
+            out.append(pattern)
+    return out
 
 
 def _solve(solve: Solve, problem: Problem, pattern: Pattern):
@@ -365,4 +436,4 @@ def search(problem: Problem, solve: Solve) -> Search:
             break
         best = better
     summary = f"{len(best.switch_times)} switch(es) ({wanted} asked): " + summary
-    return Search(tuple(attempts), best, summary)
+    return Search(tuple(attempts), best, summary, {"method": "greedy", "summary": summary})

@@ -17,7 +17,9 @@ from ..bspline import SplineBasis, fit
 from ..nodes import has_reset, node_names, nodes_from_values
 from ..plan import CPPlan, SingularPlanError, closed_form
 from ..problem import Problem
+from ..trajectory import Trajectory
 from .path_timing import initial_blocks, timing_guess, unpack
+from .seed import PUSH, seeded_values
 from .transcribe import FlatNLP, coefficient_count
 
 
@@ -124,3 +126,86 @@ def _joined_timing(nlp: FlatNLP, problem: Problem, x: np.ndarray, p: np.ndarray)
             core[start : start + block.size] = timing_guess(paths[block.phase], c, block.rows)
         start += block.size
     return nlp.complete(core, p)
+
+
+FIT_SAMPLES = 200
+"""Points per phase where a seed's CP is fitted."""
+
+
+def seeded_guess(
+    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed: Trajectory
+) -> np.ndarray:
+    """The whole initial decision vector from a seed trajectory (a coarse collocation, or a
+    plan already solved): freed node values from its state (:func:`cpopt.flatopt.seed.
+    seeded_values`), and each phase's free coefficients fitted to its CP by least squares with
+    the eliminated boundary coefficients, which the node values fix, kept."""
+    o = problem.spec.optimizer
+    values = seeded_values(problem, signs, seed)
+    p = nlp.parameters(values)
+    core = np.zeros(nlp.layout.size)
+    start, where = 0, []
+    for block in nlp.layout.blocks:
+        if block.kind == "value":
+            core[start] = values[block.name]
+        elif block.kind == "margin":
+            core[start] = o.gamma_min
+        elif block.kind == "coefficients":
+            where.append((block, start))
+        start += block.size
+    outs = nlp.unpack(nlp.complete(core, p), p)
+    times = [n.t for n in nodes_from_values(values, len(problem.nodes))]
+    basis = SplineBasis(o.degree, coefficient_count(o))
+    for k in range(len(problem.nodes) - 1):
+        blocks = [(b, at) for b, at in where if b.phase == k]
+        free = np.zeros(basis.count, bool)
+        for b, _ in blocks:
+            free[b.rows[0] : b.rows[1]] = True
+        C = np.array(outs[1 + k], float)
+        span = (times[k], times[k + 1])
+        C[free] = fitted(basis, C, free, seed, span, signs[k] * (o.gamma_min + PUSH))
+        for b, at in blocks:
+            core[at : at + b.size] = C[b.rows[0] : b.rows[1]].T.ravel()
+    return nlp.complete(core, p)
+
+
+FIT_SCALES = (1e-2, 0.1, 1e3)
+"""What one unit of misfit is in the seed's fit: CP position [m], CP acceleration [m/s^2], and
+the CP's fourth derivative [m/s^4], which the torque follows, as smoothing."""
+
+
+def targets(seed: Trajectory, t: np.ndarray, least: float) -> list[np.ndarray]:
+    """The seed's CP position and acceleration at times t, the acceleration moved along the
+    link so that sign(least) gamma >= |least| (p'' + g0 e_y = gamma (cos, sin)(theta)): a
+    stretch where the seed's gamma is too small or of the other sign would start the phase
+    near its singularity."""
+    position, acceleration = (
+        np.column_stack([np.interp(t, seed.t, seed.cp[:, i, r]) for i in range(2)]) for r in (0, 2)
+    )
+    gamma = np.interp(t, seed.t, seed.gamma)
+    theta = np.interp(t, seed.t, seed.z[:, 2])
+    wanted = np.sign(least) * np.maximum(np.sign(least) * gamma, abs(least))
+    along = np.column_stack([np.cos(theta), np.sin(theta)])
+    return [position, acceleration + (wanted - gamma)[:, None] * along, np.zeros_like(position)]
+
+
+def fitted(
+    basis: SplineBasis,
+    C: np.ndarray,
+    free: np.ndarray,
+    seed: Trajectory,
+    span: tuple[float, float],
+    least: float,
+) -> np.ndarray:
+    """The free rows of a phase's coefficients (the others fixed) that fit the seed's CP on
+    ``span`` [s] (:func:`targets`), with the fourth derivative kept small: a position fit
+    alone leaves the ends, where the node values fix the jet, free to kink."""
+    s = np.linspace(0.0, 1.0, FIT_SAMPLES)
+    h = span[1] - span[0]
+    rows, rhs = [], []
+    wanted = targets(seed, span[0] + s * h, least)
+    for order, scale, target in zip((0, 2, 4), FIT_SCALES, wanted, strict=True):
+        B = basis.matrix(s, order) / h**order / scale
+        rows.append(B[:, free])
+        rhs.append(target / scale - B[:, ~free] @ C[~free])
+    solution, *_ = np.linalg.lstsq(np.vstack(rows), np.vstack(rhs), rcond=None)
+    return solution

@@ -1,0 +1,220 @@
+"""The seed of the switch search: where the unconstrained optimum wants gamma to cross zero.
+
+A coarse direct collocation of the same problem without the regularity constraint (the
+``collocation/`` planner, :data:`SEED_INTERVALS` intervals) is solved first. Its gamma, read on
+the collocation polynomials between the knots (not only at them), gives the crossings; crossings
+closer than the shortest phase (:data:`cpopt.nodes.MIN_PHASE`) to each other cancel in pairs
+(a dip too short for a phase of its own), and those closer to a node of the file than that are
+moved inside. The signs of gamma between the crossings and the crossings' times are the pattern
+(:func:`seed_pattern`); the seed's state and CP are the flat solve's warm start
+(:func:`seeded_values`, :func:`cpopt.flatopt.warm_start.seeded_guess`).
+
+Any trajectory serves as a seed: the polish of the search (:mod:`cpopt.flatopt.switching`)
+seeds a neighbouring pattern with the plan it has solved.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..problem import Problem
+from ..trajectory import Trajectory, gamma_crossings
+from .transcribe import GAMMA_SAFETY
+
+SEED_INTERVALS = 30
+"""Collocation intervals of the seed (chosen by measurement: 30 finds the benchmark transfer's
+three crossings within 5 ms of those at N = 200, in a third of the time of N = 60)."""
+PUSH = 0.5
+"""Where the seed's |gamma| is below gamma_min, a node value is moved to gamma_min + PUSH
+[m/s^2] on its phase's side (a little inside the margin, so Ipopt starts interior)."""
+
+
+@dataclass(frozen=True)
+class SeedReport:
+    """What the seed found and what it cost (``solution.json``: ``solver.search.seed``).
+
+    Attributes
+    ----------
+    intervals : int
+        Collocation intervals.
+    status : str
+        The collocation solve's status.
+    iterations : int
+        Its Ipopt iterations.
+    time_s : float
+        Wall time of the seed, building included [s].
+    objective : float
+        Its objective (the problem's, without the regularity constraint).
+    crossings : tuple of float
+        Every time its gamma changes sign [s].
+    switch_times : tuple of float
+        The crossings kept for the pattern [s] (close pairs cancelled, moved off the nodes).
+    """
+
+    intervals: int
+    status: str
+    iterations: int
+    time_s: float
+    objective: float
+    crossings: tuple[float, ...]
+    switch_times: tuple[float, ...]
+
+    def as_dict(self) -> dict:
+        """JSON-ready figures."""
+        return {
+            "intervals": self.intervals,
+            "status": self.status,
+            "iterations": self.iterations,
+            "time_s": self.time_s,
+            "objective": self.objective,
+            "crossings": list(self.crossings),
+            "switch_times": list(self.switch_times),
+        }
+
+
+@dataclass(frozen=True)
+class Seed:
+    """A seed: the sampled trajectory and its report (``trajectory`` None when it failed)."""
+
+    trajectory: Trajectory | None
+    report: SeedReport
+
+
+def shallow(traj: Trajectory, a: float, b: float, gamma_min: float) -> bool:
+    """True when the seed's |gamma| stays below gamma_min between two crossings a < b [s]: an
+    excursion to the other sign that a phase of that sign (|gamma| >= gamma_min throughout)
+    would have to deepen as much as a phase of the surrounding sign would have to lift it."""
+    inside = (traj.t > a) & (traj.t < b)
+    return not inside.any() or float(np.abs(traj.gamma[inside]).max()) < gamma_min
+
+
+def kept_crossings(
+    times: tuple[float, ...], node_times: list[float], traj: Trajectory, gamma_min: float
+) -> tuple[float, ...]:
+    """The crossings a pattern can hold: a pair around a shallow excursion (:func:`shallow`)
+    or closer than MIN_PHASE cancels (closest first), the rest are moved at least MIN_PHASE
+    away from the file's nodes; a crossing with no room for that between two nodes is
+    dropped."""
+    kept = sorted(times)
+    j = 0
+    while j < len(kept) - 1:
+        if shallow(traj, kept[j], kept[j + 1], gamma_min):
+            del kept[j : j + 2]
+        else:
+            j += 1
+    while len(kept) > 1:
+        gaps = np.diff(kept)
+        j = int(np.argmin(gaps))
+        if gaps[j] >= MIN_PHASE:
+            break
+        del kept[j : j + 2]
+    out = []
+    for t in kept:
+        lo = max(n for n in node_times if n <= t)
+        hi = min(n for n in node_times if n >= t)
+        if hi - lo >= 2 * MIN_PHASE:
+            out.append(min(max(t, lo + MIN_PHASE), hi - MIN_PHASE))
+    return tuple(out)
+
+
+def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS) -> Seed:
+    """Solve the problem by coarse collocation without the regularity constraint and read where
+    its gamma crosses zero (see the module docstring). A failed solve still seeds (its last
+    iterate) unless it returned no plan at all; nothing here raises on a valid problem."""
+    from ..collocation import collocate, joint_trajectory
+
+    tic = time.perf_counter()
+    try:
+        result = collocate(problem, intervals=intervals, gamma_constraint=False)
+        traj = joint_trajectory(result.plan) if result.plan is not None else None
+        status, stats = result.status, result.solver
+    except (RuntimeError, ValueError, ArithmeticError) as err:  # CasADi's errors are these
+        traj, status, stats = None, f"failed: {str(err).splitlines()[0][:80]}", None
+    found = gamma_crossings(traj.t, traj.gamma) if traj is not None else ()
+    node_times = [n.t for n in problem.nodes]
+    report = SeedReport(
+        intervals=intervals,
+        status=status,
+        iterations=stats.iterations if stats else 0,
+        time_s=time.perf_counter() - tic,
+        objective=stats.objective if stats else math.nan,
+        crossings=found,
+        switch_times=kept_crossings(found, node_times, traj, problem.spec.optimizer.gamma_min)
+        if traj is not None
+        else (),
+    )
+    return Seed(traj, report)
+
+
+def phase_signs(traj: Trajectory, phases: list[tuple[int, float, float]]) -> tuple[int, ...]:
+    """The sign of the seed's gamma over each phase (file phase, start [s], end [s]): the sign
+    of its integral there."""
+    out = []
+    for _, a, b in phases:
+        inside = (traj.t >= a) & (traj.t <= b)
+        g = traj.gamma[inside] if inside.sum() > 1 else np.interp([a, b], traj.t, traj.gamma)
+        out.append(1 if float(np.mean(g)) >= 0 else -1)
+    return tuple(out)
+
+
+def state_at(traj: Trajectory, t: float, sign: int, gamma_min: float, K: float, g0: float):
+    """The extended state z (8) the seed suggests at time t for a phase of this sign of gamma:
+    its pose and velocities, xi that gives its gamma moved to the sign's side
+    (``gamma_min + PUSH`` where it is closer to zero than gamma_min), eta from the rate of its
+    gamma (gamma_dot = eta + 3 g0 cos(theta) thetadot)."""
+    z = np.array([np.interp(t, traj.t, traj.z[:, i]) for i in range(6)])
+    gamma = float(np.interp(t, traj.t, traj.gamma))
+    if sign * gamma < gamma_min * (1 + GAMMA_SAFETY):
+        gamma = sign * (gamma_min + PUSH)
+    theta, thetadot = z[2], z[5]
+    xi = gamma + K * thetadot**2 - g0 * math.sin(theta)
+    width = max(MIN_PHASE / 2, 4 * float(np.median(np.diff(traj.t))))  # the knots' steps
+    lo, hi = max(t - width, traj.t[0]), min(t + width, traj.t[-1])
+    rate = (np.interp(hi, traj.t, traj.gamma) - np.interp(lo, traj.t, traj.gamma)) / (hi - lo)
+    eta = rate - 3 * g0 * math.cos(theta) * thetadot
+    return np.r_[z, xi, eta]
+
+
+def seeded_values(
+    problem: Problem, signs: tuple[int, ...], traj: Trajectory, fixed_times: bool = True
+) -> dict[str, float]:
+    """The problem's values (SI) with every freed node value taken from the seed (within its
+    bounds): the states at the nodes' times, xi and eta on each side for its phase's sign.
+
+    With ``fixed_times`` node times and the duration keep their guesses (the switch times are
+    the pattern's, already among them)."""
+    arm = problem.arm
+    gamma_min = problem.spec.optimizer.gamma_min
+    values = dict(problem.values)
+    names = node_names(len(problem.nodes))
+    for i, (name, node) in enumerate(zip(names, problem.nodes, strict=True)):
+        before = state_at(traj, node.t, signs[max(i - 1, 0)], gamma_min, arm.K, arm.gravity)
+        after = state_at(traj, node.t, signs[min(i, len(signs) - 1)], gamma_min, arm.K, arm.gravity)
+        suggested = dict(zip(NODE_FIELDS, before, strict=True))
+        suggested["xi_after"], suggested["eta_after"] = after[6], after[7]
+        for field, value in suggested.items():
+            key = f"{name}.{field}"
+            if key in problem.free:
+                lo, hi = problem.free[key]
+                values[key] = float(np.clip(value, lo, hi))
+    if not fixed_times and "duration" in problem.free:
+        values["duration"] = float(traj.t[-1])
+    return values
+
+
+__all__ = [
+    "PUSH",
+    "SEED_INTERVALS",
+    "Seed",
+    "SeedReport",
+    "coarse_seed",
+    "kept_crossings",
+    "phase_signs",
+    "seeded_values",
+    "state_at",
+]

@@ -1,0 +1,129 @@
+"""The seeded switch search (optimizer.switch_search: seed): the coarse collocation seed, the
+pattern it suggests, the warm start fitted to it, and a search that never raises."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cpopt.flatopt import optimize
+from cpopt.flatopt.seed import coarse_seed, kept_crossings
+from cpopt.flatopt.switching import neighbours, seed_pattern, with_switches
+from cpopt.problem import load_problem, parse_problem
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _auto(path: Path, **optimizer):
+    """A problem with gamma_switches: auto, no sign asked, and other optimizer settings."""
+    problem = load_problem(path)
+    data = problem.spec.model_dump()
+    data["planner"] = "optimize"
+    data["optimizer"].update(gamma_switches="auto", gamma_sign=None, **optimizer)
+    return parse_problem(data, problem.source, problem.name)
+
+
+@pytest.fixture(scope="module")
+def transfer():
+    return _auto(ROOT / "benchmarks" / "problems" / "transfer.yaml")
+
+
+@pytest.fixture(scope="module")
+def transfer_seed(transfer):
+    return coarse_seed(transfer)
+
+
+def test_the_seed_finds_the_benchmark_transfers_three_crossings(transfer, transfer_seed):
+    """The unconstrained optimum crosses gamma = 0 three times (0.09, 0.39, 0.45 s at N = 200);
+    the dip between the last two stays shallower than gamma_min, so that pair cancels."""
+    report = transfer_seed.report
+    assert report.status == "solved" and report.intervals == 30
+    assert report.crossings == pytest.approx((0.097, 0.397, 0.457), abs=0.01)
+    assert report.switch_times == pytest.approx((0.097,), abs=0.01)
+    pattern = seed_pattern(transfer, transfer_seed, 6)
+    assert pattern.signs == (-1, 1)  # gamma < 0 while the link is swung, then > 0
+
+
+def test_close_or_shallow_pairs_cancel_and_crossings_leave_the_nodes(transfer_seed):
+    traj = transfer_seed.trajectory
+    deep = (0.097, 0.6, 0.9)  # the seed's gamma is far from zero between these
+    assert kept_crossings(deep, [0.0, 1.0], traj, 2.0) == deep
+    assert kept_crossings((0.3, 0.32), [0.0, 1.0], traj, 0.0) == ()  # closer than MIN_PHASE
+    assert kept_crossings((0.01,), [0.0, 1.0], traj, 0.0) == (0.05,)  # MIN_PHASE off the start
+
+
+def test_neighbours_merge_pairs_before_dropping_switches(transfer, transfer_seed):
+    from cpopt.flatopt.switching import Pattern
+
+    old = Pattern((0.1, 0.4, 0.46), (-1, 1, -1, 1))
+    found = neighbours(transfer, old)
+    assert found[0] == Pattern((0.1,), (-1, 1))  # the short stretch 0.40-0.46 merged
+    assert all(len(p.times) in (1, 2) for p in found)
+
+
+def test_the_seeded_transfer_reaches_the_unconstrained_cost(transfer):
+    """Measured: 40427 against 40369 for collocation without the regularity constraint at
+    N = 200 (1.0014), one switch near 0.097 s, certified |gamma| >= gamma_min."""
+    result = optimize(transfer)
+    d = result.solver.details
+    assert result.status == "solved"
+    assert result.solver.objective == pytest.approx(40427.4, rel=2e-3)
+    assert d.gamma_signs == ("negative", "positive")
+    assert d.switch_times == pytest.approx((0.097,), abs=0.01)
+    assert d.certified_min_abs_gamma >= 2.0
+    figures = d.as_dict()["search"]
+    assert figures["method"] == "seed"
+    assert {"seed", "flat", "polish"} <= set(figures)
+    assert figures["flat"]["iterations"] > 0 and figures["seed"]["time_s"] > 0
+
+
+def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_seed):
+    """The warm start's CP follows the seed's, and its gamma has each phase's sign."""
+    from cpopt.flatopt import plan_from
+    from cpopt.flatopt.seed import seeded_values
+    from cpopt.flatopt.transcribe import build
+    from cpopt.flatopt.warm_start import seeded_guess
+    from cpopt.trajectory import sample
+
+    pattern = seed_pattern(transfer, transfer_seed, 6)
+    problem, switches = with_switches(transfer, pattern.times, free_times=False)
+    nlp = build(problem, pattern.signs)
+    x0 = seeded_guess(nlp, problem, pattern.signs, transfer_seed.trajectory)
+    p = nlp.parameters(seeded_values(problem, pattern.signs, transfer_seed.trajectory))
+    plan, _, _ = plan_from(problem, nlp, x0, p, pattern.signs, switches)
+    traj = sample(plan, 201)
+    seed = transfer_seed.trajectory
+    cp = np.column_stack([np.interp(traj.t, seed.t, seed.cp[:, i, 0]) for i in range(2)])
+    assert np.abs(traj.cp[:, :, 0] - cp).max() < 0.05  # [m]; measured 0.026 (gamma pushed)
+    for k, phase in enumerate(plan.phases):
+        assert (phase.sigma * traj.gamma[traj.phase == k]).min() > 1.0  # [m/s^2]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "path, search",
+    [
+        (ROOT / "problems" / "rpr_transfer.yaml", "seed"),  # crashed the greedy search once
+        (ROOT / "problems" / "rpr_transfer.yaml", "greedy"),
+        (ROOT / "problems" / "prr_swing_up.yaml", "seed"),
+    ],
+    ids=["rpr transfer seed", "rpr transfer greedy", "prr swing-up seed"],
+)
+def test_no_search_raises_on_an_unseen_problem(path, search):
+    problem = _auto(path, switch_search=search, samples=30)
+    result = optimize(problem)
+    assert result.status in ("solved", "max_iterations", "not_converged", "infeasible")
+    assert result.plan is not None
+    assert result.solver.details.as_dict()["search"]["method"] == search
+
+
+def test_collocation_reports_where_gamma_crosses_zero(transfer):
+    """An unconstrained collocation plan that crosses gamma = 0 has min |gamma| = 0 and says
+    where (at knots alone it reported 0.67 m/s^2)."""
+    from cpopt.collocation import collocate, joint_metrics, joint_trajectory
+
+    plan = collocate(transfer, intervals=30, gamma_constraint=False).plan
+    m = joint_metrics(plan, joint_trajectory(plan))
+    assert m.gamma_sign_changes == pytest.approx((0.097, 0.397, 0.457), abs=0.01)
+    assert m.min_abs_gamma == 0.0 and m.min_abs_gamma_time == m.gamma_sign_changes[0]
+    assert m.as_dict()["gamma_sign_changes"] == list(m.gamma_sign_changes)
