@@ -25,7 +25,7 @@ NODE_FIELDS = ("x", "y", "theta_deg", "xdot", "ydot", "thetadot_deg")
 """Node values collocation imposes (in the file's units; xi and eta have no meaning here)."""
 
 
-def _cold_guess(problem: Problem, t: np.ndarray) -> tuple[np.ndarray, ...]:
+def cold_guess(problem: Problem, t: np.ndarray) -> tuple[np.ndarray, ...]:
     """Smooth-step joint motion between the nodes' joint states; the holding torques."""
     arm = problem.arm
     states = [joint_state(arm, n.state()) for n in problem.nodes]
@@ -229,7 +229,7 @@ def transcription(problem: Problem, intervals: int, gamma_constraint: bool, warm
     traj = sample(warm_start, per_phase=401) if warm_start else None  # once, for every stage
 
     def guess(t):
-        return _warm_guess(traj, t) if warm_start else _cold_guess(problem, t)
+        return _warm_guess(traj, t) if warm_start else cold_guess(problem, t)
 
     key = (problem.spec.model_dump_json(), intervals, gamma_constraint, sign)
     if warm_start is None and key in _CACHE:

@@ -336,10 +336,11 @@ def optimize(problem: Problem) -> OptimizeResult:
         message = f"Ipopt: {best.ipopt_status} (signs of gamma: {'/'.join(best.signs)})"
     if best.status != "solved" and best.violations:
         message += "; violated: " + "; ".join(best.violations[:3])
+    seed = search.figures.get("seed", {})  # the seeded search's collocation counts too
     stats = SolverStats(
-        iterations=sum(a.iterations for a in attempts),
-        build_time_s=sum(a.build_time_s for a in attempts),
-        solve_time_s=sum(a.solve_time_s for a in attempts),
+        iterations=sum(a.iterations for a in attempts) + seed.get("iterations", 0),
+        build_time_s=sum(a.build_time_s for a in attempts) + seed.get("build_time_s", 0.0),
+        solve_time_s=sum(a.solve_time_s for a in attempts) + seed.get("solve_time_s", 0.0),
         message=message,
         objective=best.objective,
         cost_terms=best.cost_terms,

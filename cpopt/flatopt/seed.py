@@ -1,7 +1,9 @@
 """The seed of the switch search: where the unconstrained optimum wants gamma to cross zero.
 
-A coarse direct collocation of the same problem without the regularity constraint (the
-``collocation/`` planner, :data:`SEED_INTERVALS` intervals) is solved first. Its gamma, read on
+A coarse direct collocation of the same problem without the regularity constraint
+(:data:`SEED_INTERVALS` intervals; Hermite-Simpson, :mod:`cpopt.collocation.hermite_simpson`,
+or the ``collocation/`` planner's rockit transcription where that one does not apply) is solved
+first. Its gamma, read on
 the collocation polynomials between the knots (not only at them), gives the crossings; crossings
 closer than the shortest phase (:data:`cpopt.nodes.MIN_PHASE`) to each other cancel in pairs
 (a dip too short for a phase of its own), and those closer to a node of the file than that are
@@ -48,6 +50,8 @@ class SeedReport:
         Its Ipopt iterations.
     time_s : float
         Wall time of the seed, building included [s].
+    build_time_s, solve_time_s : float
+        Building the NLP and Ipopt's solve [s].
     objective : float
         Its objective (the problem's, without the regularity constraint).
     crossings : tuple of float
@@ -63,6 +67,8 @@ class SeedReport:
     objective: float
     crossings: tuple[float, ...]
     switch_times: tuple[float, ...]
+    build_time_s: float = 0.0
+    solve_time_s: float = 0.0
 
     def as_dict(self) -> dict:
         """JSON-ready figures."""
@@ -71,6 +77,8 @@ class SeedReport:
             "status": self.status,
             "iterations": self.iterations,
             "time_s": self.time_s,
+            "build_time_s": self.build_time_s,
+            "solve_time_s": self.solve_time_s,
             "objective": self.objective,
             "crossings": list(self.crossings),
             "switch_times": list(self.switch_times),
@@ -127,12 +135,16 @@ def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS) -> Seed:
     its gamma crosses zero (see the module docstring). A failed solve still seeds (its last
     iterate) unless it returned no plan at all; nothing here raises on a valid problem."""
     from ..collocation import collocate, joint_trajectory
+    from ..collocation.hermite_simpson import SeedUnsupportedError, hermite_simpson
 
     tic = time.perf_counter()
     try:
-        result = collocate(problem, intervals=intervals, gamma_constraint=False)
-        traj = joint_trajectory(result.plan) if result.plan is not None else None
-        status, stats = result.status, result.solver
+        try:
+            status, plan, stats = hermite_simpson(problem, intervals)
+        except SeedUnsupportedError:  # free times, other objectives: rockit's transcription
+            result = collocate(problem, intervals=intervals, gamma_constraint=False)
+            status, plan, stats = result.status, result.plan, result.solver
+        traj = joint_trajectory(plan) if plan is not None else None
     except (RuntimeError, ValueError, ArithmeticError) as err:  # CasADi's errors are these
         traj, status, stats = None, f"failed: {str(err).splitlines()[0][:80]}", None
     found = gamma_crossings(traj.t, traj.gamma) if traj is not None else ()
@@ -143,6 +155,8 @@ def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS) -> Seed:
         iterations=stats.iterations if stats else 0,
         time_s=time.perf_counter() - tic,
         objective=stats.objective if stats else math.nan,
+        build_time_s=stats.build_time_s if stats else 0.0,
+        solve_time_s=stats.solve_time_s if stats else 0.0,
         crossings=found,
         switch_times=kept_crossings(found, node_times, traj, problem.spec.optimizer.gamma_min)
         if traj is not None

@@ -36,6 +36,9 @@ GRID = 801
 """Times over the motion on which patterns of signs are compared."""
 POLISH_LIMIT = 150
 """Most Ipopt iterations of one polish attempt: a neighbour that needs more is not cheap."""
+POLISH_SPAN = 0.2
+"""A switch is dropped in the polish only where the stretch whose sign it flips is at most
+this fraction of the motion."""
 SWITCH_FIELDS = (*NODE_FIELDS, "xi_after", "eta_after", "t")
 """The values of a switch the optimizer chooses: the whole state, xi and eta on both sides
 and the time."""
@@ -338,8 +341,9 @@ def seed_pattern(problem: Problem, seed: Seed, budget: int) -> Pattern | None:
 
 def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
     """The patterns one switch away: two adjacent switches merged (the short stretch between
-    them takes its neighbours' sign), then each switch dropped, the shortest stretch first;
-    each with the signs that agree with ``old`` the longest."""
+    them takes its neighbours' sign), then each switch dropped whose shorter side is at most
+    :data:`POLISH_SPAN` of the motion, the shortest stretch first; each with the signs that
+    agree with ``old`` the longest."""
     t = np.linspace(0.0, problem.nodes[-1].t, GRID)
     cuts = np.array([b for _, _, b in _phases(problem, old.times)[:-1]])
     wanted = np.take(old.signs, np.searchsorted(cuts, t, side="right"))
@@ -348,6 +352,8 @@ def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
     bounds = [0.0, *times, problem.nodes[-1].t]
     dropped = [(min(bounds[j + 1] - bounds[j], bounds[j + 2] - bounds[j + 1]), (j,))
                for j in range(len(times))]  # fmt: skip
+    # flipping the sign of gamma over a long stretch is never a cheap solve: not tried
+    dropped = [d for d in dropped if d[0] <= POLISH_SPAN * problem.nodes[-1].t]
     out = []
     for _, gone in sorted(merged) + sorted(dropped):
         kept = tuple(x for j, x in enumerate(times) if j not in gone)
