@@ -201,11 +201,12 @@ class IterationReporter(ca.Callback):
     def get_sparsity_in(self, i: int) -> ca.Sparsity:
         return ca.Sparsity.dense(self.sizes.get(ca.nlpsol_out(i), 0), 1)
 
-    def start(self, label: str, limit: int | None = None) -> None:
+    def start(self, label: str, limit: int | None = None, abandon=None) -> None:
         """Reset the count for a new run called ``label``, stopped after ``limit`` iterations
-        if given (a cap below the solver's own ``max_iter``, without rebuilding the solver)."""
+        if given (a cap below the solver's own ``max_iter``, without rebuilding the solver), or
+        once ``abandon(iteration, objective)`` is true (a run another has already beaten)."""
         self.count, self.label, self.stop, self.limit = 0, label, None, limit
-        self.capped = False
+        self.capped, self.abandon, self.abandoned = False, abandon, False
 
     def eval(self, arg) -> list:
         self.count += 1
@@ -214,7 +215,9 @@ class IterationReporter(ca.Callback):
         except BaseException as stop:  # Ctrl-C or the time limit: stop Ipopt, raise later
             self.stop = stop
         self.capped = self.limit is not None and self.count > self.limit
-        return [1 if self.stop is not None or self.capped else 0]
+        if self.abandon is not None:
+            self.abandoned = bool(self.abandon(self.count, float(arg[1])))
+        return [1 if self.stop is not None or self.capped or self.abandoned else 0]
 
 
 def run_nlp(
@@ -222,18 +225,20 @@ def run_nlp(
     reporter: IterationReporter | None = None,
     label: str = "",
     limit: int | None = None,
+    abandon=None,
     **arguments,
 ) -> NlpRun:
     """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg).
 
     ``reporter`` is the solver's :class:`IterationReporter`, if it has one; ``label`` names the
     run in progress lines and above Ipopt's output (``--verbose``); ``limit`` caps the
-    iterations through the reporter (a run stopped there is ``max_iterations``).
+    iterations through the reporter (a run stopped there is ``max_iterations``); ``abandon``
+    stops it once ``abandon(iteration, objective)`` is true (status ``dominated``).
     """
     if label:
         progress.ipopt_run(label)
     if reporter is not None:
-        reporter.start(label, limit)
+        reporter.start(label, limit, abandon)
     start = time.perf_counter()
     solution = solver(**arguments)
     elapsed = time.perf_counter() - start
@@ -242,6 +247,8 @@ def run_nlp(
     ipopt, status, iterations = read_stats(solver.stats())
     if reporter is not None and reporter.capped:
         ipopt, status = f"Iteration_Cap_{limit}", "max_iterations"
+    if reporter is not None and reporter.abandoned:
+        ipopt, status = f"Abandoned_Dominated_At_{iterations}", "dominated"
     return NlpRun(
         x=np.asarray(solution["x"]).ravel(),
         objective=float(solution["f"]),

@@ -345,7 +345,8 @@ def test_auto_switches_lower_the_transfer_cost(optimized):
     sol = optimized["transfer_switch"]
     d = sol.solver.details
     choices = d.sign_choices
-    one_sign = [c for c in choices if not c.switch_times and c.status == "solved"]
+    # a one-sign run that a solved one dominates is abandoned early (status dominated)
+    one_sign = [c for c in choices if not c.switch_times and c.status in ("solved", "dominated")]
     assert {c.signs for c in one_sign} == {("positive",), ("negative",)}
     assert len(d.switch_times) >= 1 and len(set(d.gamma_signs)) == 2
     assert sol.solver.objective < 0.99 * min(c.objective for c in one_sign)

@@ -237,6 +237,7 @@ def solve_for_signs(
     switches: tuple[int, ...] = (),
     seed: Trajectory | None = None,
     limit: int | None = None,
+    abandon=None,
 ) -> SignAttempt:
     """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
     the margin is certified.
@@ -254,6 +255,9 @@ def solve_for_signs(
         the closed form through the nodes.
     limit : int, optional
         Most Ipopt iterations over all rounds (a cheap attempt of the search's polish).
+    abandon : callable, optional
+        ``abandon(iteration, objective) -> bool``: stop a run another pattern has clearly
+        beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
     """
     grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
@@ -278,7 +282,7 @@ def solve_for_signs(
         lbx, ubx = _bounds(nlp, problem)
         left = None if limit is None else max(limit - iterations, 1)
         arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
-        run = run_nlp(nlp.solver, nlp.reporter, label, left, **arguments)
+        run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
         plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
