@@ -13,7 +13,6 @@ from functools import lru_cache
 from math import comb, factorial
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from .curves import PiecewisePolynomial
 
@@ -79,6 +78,8 @@ def _knots(degree: int, count: int) -> np.ndarray:
 def _matrix(degree: int, count: int, s: tuple, order: int) -> np.ndarray:
     if order > degree:  # a low-degree path's higher derivatives (SciPy refuses to form them)
         return np.zeros((len(s), count))
+    from scipy.interpolate import BSpline  # imported here: 0.7 s of start-up otherwise
+
     spline = BSpline(_knots(degree, count), np.eye(count), degree)
     if order:
         spline = spline.derivative(order)

@@ -11,7 +11,6 @@ checks the wall-clock budget of the problem being solved (:func:`cpopt.budget.ch
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import DOP853
 
 from .budget import check_time
 
@@ -85,6 +84,8 @@ def integrate(
         When the problem's wall-clock budget runs out.
     """
     max_steps = int(BASE_STEPS + steps_per_second * (t1 - t0))
+    from scipy.integrate import DOP853  # imported where used: start-up time
+
     solver = DOP853(rhs, t0, np.asarray(x0, float), t1, rtol=rtol, atol=atol)
     t_eval = np.asarray(t_eval, float)
     ts, xs, i, steps = [], [], 0, 0

@@ -25,6 +25,7 @@ OPTIMIZED = (
     "swing_up_path_timing",
     "swing_up_holding",
     "transfer_switch",
+    "swing_up_switches",
 )
 
 

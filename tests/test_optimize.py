@@ -356,6 +356,22 @@ def test_auto_switches_lower_the_transfer_cost(optimized):
     assert sol.verification.closed_loop.max_cp_error < 1e-6
 
 
+def test_swing_up_switches_crosses_gamma_zero_twice(optimized):
+    """gamma_switches: auto on the minimum-torque swing-up: the seed crosses four times (0.94,
+    1.00, 1.10, 1.48 s); the first pair lands on the via state and cancels, the plan keeps two
+    switches and costs half the one-sign plan (measured 1749.6 against 3424.8)."""
+    sol = optimized["swing_up_switches"]
+    d = sol.solver.details
+    assert d.switch_times == pytest.approx((1.104, 1.485), abs=0.01)
+    assert d.gamma_signs == ("negative", "negative", "positive", "negative")
+    assert sol.solver.objective < 0.55 * optimized["swing_up_min_torque"].solver.objective
+    assert sol.metrics.min_abs_gamma >= 2.0
+    assert sol.metrics.gamma_sign_changes == pytest.approx(d.switch_times)
+    assert sol.verification.closed_loop.max_cp_error < 1e-6
+    search = d.as_dict()["search"]
+    assert search["method"] == "seed" and len(search["seed"]["crossings"]) == 4
+
+
 def test_a_freed_via_eta_without_eta_after_stays_continuous():
     """Freeing ``via[0].eta`` alone must not reset eta at the via state (found by review: the
     value after it stayed the file's eta, a hidden reset and a jerk step)."""

@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
-from scipy.linalg import solve_triangular
 
 from .. import flat
 from ..bspline import SplineBasis
@@ -208,6 +207,8 @@ def _timing(path: PathSpec, k: int, ends: list, h, layout: Layout) -> ca.MX:
     r0, r1 = int(head.numel()), int(tail.numel())
     E0 = basis.end_matrices(r0)[0]
     E1 = basis.end_matrices(r1)[1]
+    from scipy.linalg import solve_triangular  # imported where used: start-up time
+
     c_head = ca.mtimes(ca.sparsify(ca.DM(solve_triangular(E0, np.eye(r0), lower=True))), head)
     # at s = 1 derivative r involves the last r + 1 coefficients: reversed, E1 is triangular
     inverse = solve_triangular(E1[:, ::-1], np.eye(r1), lower=True)[::-1]

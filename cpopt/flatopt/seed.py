@@ -121,12 +121,17 @@ def kept_crossings(
         if gaps[j] >= MIN_PHASE:
             break
         del kept[j : j + 2]
-    out = []
+    out: list[float] = []
     for t in kept:
         lo = max(n for n in node_times if n <= t)
         hi = min(n for n in node_times if n >= t)
-        if hi - lo >= 2 * MIN_PHASE:
-            out.append(min(max(t, lo + MIN_PHASE), hi - MIN_PHASE))
+        if hi - lo < 2 * MIN_PHASE:
+            continue
+        t = min(max(t, lo + MIN_PHASE), hi - MIN_PHASE)
+        if out and t - out[-1] < MIN_PHASE:  # moved next to the previous one: the pair cancels
+            out.pop()
+        else:
+            out.append(t)
     return tuple(out)
 
 

@@ -23,7 +23,6 @@ from functools import lru_cache
 
 import casadi as ca
 import numpy as np
-from scipy.linalg import expm
 
 from ..dynamics import arm_dynamics
 from ..mapping import mapped
@@ -99,6 +98,8 @@ def discrete_linearization(reference: Reference) -> tuple[np.ndarray, np.ndarray
     M = np.zeros((n, 8, 8))
     M[:, :6, :6] = np.asarray(A).reshape(6, n, 6).transpose(1, 0, 2)
     M[:, :6, 6:] = np.asarray(B).reshape(6, n, 2).transpose(1, 0, 2)
+    from scipy.linalg import expm  # imported where used: start-up time
+
     E = expm(M * reference.period)
     return E[:, :6, :6], E[:, :6, 6:]
 
