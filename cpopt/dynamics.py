@@ -123,3 +123,27 @@ def inverse_dynamics(arm: Arm, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -
 def holding_torque(arm: Arm, q: np.ndarray) -> np.ndarray:
     """Static torques (tau1, tau2) [N m or N] that hold the arm at rest at q (3,)."""
     return np.asarray(arm_dynamics(arm)["g"](q)).ravel()[:2]
+
+
+@lru_cache(maxsize=32)
+def rk4_step(arm: Arm, substeps: int = 8) -> ca.Function:
+    """``(x, tau, h) -> (x_next, states)``: the joint state x = (q, qd) after h [s] under the
+    constant torque tau (RK4, ``substeps`` steps), and the states at the start of each step
+    (6 x substeps)."""
+    x = ca.SX.sym("x", 6)
+    tau = ca.SX.sym("tau", 2)
+    h = ca.SX.sym("h")
+    forward = arm_dynamics(arm)["forward"]
+
+    def f(y):
+        return ca.vertcat(y[3:6], forward(y[0:3], y[3:6], tau))
+
+    dt, y, states = h / substeps, x, []
+    for _ in range(substeps):
+        states.append(y)
+        k1 = f(y)
+        k2 = f(y + dt / 2 * k1)
+        k3 = f(y + dt / 2 * k2)
+        k4 = f(y + dt * k3)
+        y = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("rk4_step", [x, tau, h], [y, ca.horzcat(*states)])

@@ -24,6 +24,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from ..dynamics import rk4_step
 from ..kinematics import kinematic_functions
 from ..nodes import node_names
 from ..objectives import weights
@@ -41,25 +42,6 @@ SUBSTEPS = 8
 
 class SeedUnsupportedError(ValueError):
     """A problem the lean transcription does not take (free times, objective terms)."""
-
-
-def _step(arm, substeps: int) -> ca.Function:
-    """``(x, tau, h) -> (x_next, substep states 6 x substeps)``: RK4 on the full dynamics."""
-    x, tau, h = ca.SX.sym("x", 6), ca.SX.sym("tau", 2), ca.SX.sym("h")
-    dynamics = joint_functions(arm)
-
-    def f(state):
-        return ca.vertcat(state[3:], dynamics(state[:3], state[3:], tau)[0])
-
-    dt, states, z = h / substeps, [], x
-    for _ in range(substeps):
-        k1 = f(z)
-        k2 = f(z + dt / 2 * k1)
-        k3 = f(z + dt / 2 * k2)
-        k4 = f(z + dt * k3)
-        z = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        states.append(z)
-    return ca.Function("rk4", [x, tau, h], [z, ca.horzcat(x, *states[:-1])])
 
 
 def _rhs(arm) -> ca.Function:
@@ -190,7 +172,7 @@ def _plan(problem: Problem, knots, index, states, torques) -> JointPlan:
     """The JointPlan of a solution, fine samples at RK4 substeps from each knot's state under
     the interval's torque (the seed reads gamma there, between the knots)."""
     n = knots.size - 1
-    step = _step(problem.arm, SUBSTEPS).map(n)
+    step = rk4_step(problem.arm, SUBSTEPS).map(n)
     _, inner = step(states[:-1].T, torques.T, ca.DM(np.diff(knots)).T)
     inner = np.asarray(inner).T.reshape(n * SUBSTEPS, 6)
     fraction = np.arange(SUBSTEPS) / SUBSTEPS

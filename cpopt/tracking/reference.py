@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from .. import flat
-from ..dynamics import arm_dynamics, inverse_dynamics
+from ..dynamics import arm_dynamics, inverse_dynamics, rk4_step
 from ..kinematics import inverse_derivatives, inverse_position, kinematic_functions
 from ..mapping import mapped
 from ..plan import GAMMA_ZERO, CPPlan, Node
@@ -185,28 +185,6 @@ def cp_lie_derivatives(arm: Arm) -> ca.Function:
     return ca.Function("cp_lie", [q, qd, tau], [ca.cse(ca.horzcat(*derivs))])
 
 
-@lru_cache(maxsize=16)
-def _advance(arm: Arm, substeps: int = 8) -> ca.Function:
-    """``(x, tau, h) -> x``: the model's state after h [s] under a constant torque (RK4)."""
-    x = ca.SX.sym("x", 6)
-    tau = ca.SX.sym("tau", 2)
-    h = ca.SX.sym("h")
-    forward = arm_dynamics(arm)["forward"]
-
-    def f(y):
-        return ca.vertcat(y[3:6], forward(y[0:3], y[3:6], tau))
-
-    dt = h / substeps
-    y = x
-    for _ in range(substeps):
-        k1 = f(y)
-        k2 = f(y + dt / 2 * k1)
-        k3 = f(y + dt / 2 * k2)
-        k4 = f(y + dt * k3)
-        y = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("advance", [x, tau, h], [y])
-
-
 def _cp_and_compensator(arm: Arm, x: np.ndarray, tau: np.ndarray):
     """CP derivatives (N, 2, 5), (xi, eta) (N, 2) and gamma (N,) of joint states under torques."""
     n = x.shape[0]
@@ -233,7 +211,7 @@ def _joint_states(plan, t: np.ndarray, j: np.ndarray | None = None):
     if j is None:
         j = np.clip(np.searchsorted(knots, tc, side="right") - 1, 0, len(plan.tau) - 1)
     start = np.column_stack([plan.q[j], plan.qd[j]])
-    x = np.asarray(mapped(_advance(plan.arm), t.size)(start.T, plan.tau[j].T, tc - knots[j])).T
+    x = np.asarray(mapped(rk4_step(plan.arm), t.size)(start.T, plan.tau[j].T, tc - knots[j])[0]).T
     return x, plan.tau[j], j
 
 
