@@ -7,6 +7,7 @@ see :mod:`cpopt.budget`): when it runs out, the solution so far is returned with
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -33,13 +34,32 @@ class StageRecord:
     trajectory: object = None
     metrics: object = None
     solver: SolverStats = field(default_factory=SolverStats)
+    started: list = field(default_factory=lambda: [("plan", time.perf_counter())])
 
     def reached(self, stage: str, **done) -> None:
         """Enter a stage (reported to :mod:`cpopt.progress`), keeping what was ``done``."""
         self.stage = stage
         for key, value in done.items():
             setattr(self, key, value)
+        self.started.append((STAGE_KINDS.get(stage, "plan"), time.perf_counter()))
         progress.stage(stage)
+
+    def times(self) -> dict[str, float]:
+        """Wall time [s] spent in each kind of stage so far (``plan``, ``sample``, ...)."""
+        out: dict[str, float] = {}
+        marks = [*self.started, ("end", time.perf_counter())]
+        for (kind, start), (_, end) in itertools.pairwise(marks):
+            out[kind] = out.get(kind, 0.0) + end - start
+        return out
+
+
+STAGE_KINDS = {
+    "sampling the plan": "sample",
+    "verifying by simulation": "verify",
+    "open-loop replay": "verify",
+    "tracking on the plant": "track",
+}
+"""The kind of each stage :class:`StageRecord` times (any other stage is planning)."""
 
 
 def evaluate(
@@ -267,7 +287,7 @@ def solve(problem: Problem) -> Solution:
         return _time_limited(problem, budget, partial)
     if budget.fired and not solution.ok:  # stopped inside Ipopt, which then returned
         return _time_limited(problem, budget, partial)
-    return solution
+    return replace(solution, solver=replace(solution.solver, stage_times=partial.times()))
 
 
 def _time_limited(problem: Problem, budget: Budget, partial: StageRecord) -> Solution:

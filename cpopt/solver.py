@@ -94,6 +94,9 @@ class SolverStats:
         Constraints the returned plan violates, the worst place of each by name and time.
     details : PlannerDetails or None
         The planner's own figures (sign of gamma, certificate, intervals, ...).
+    stage_times : mapping of str to float
+        Wall time of each stage of the solve [s]: ``plan``, ``sample``, ``verify`` (and
+        ``track`` with a tracking block), from :class:`cpopt.pipeline.StageRecord`.
     """
 
     iterations: int = 0
@@ -104,6 +107,7 @@ class SolverStats:
     cost_terms: Mapping[str, float] = field(default_factory=dict)
     violations: tuple[str, ...] = ()
     details: PlannerDetails | None = None
+    stage_times: Mapping[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """The ``solver`` entry of ``solution.json``."""
@@ -112,6 +116,7 @@ class SolverStats:
             "build_time_s": self.build_time_s,
             "solve_time_s": self.solve_time_s,
             "message": self.message,
+            "stage_times": dict(self.stage_times),
         }
         if self.objective is not None:
             out.update(objective=self.objective, cost_terms=dict(self.cost_terms))
