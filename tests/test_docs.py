@@ -119,6 +119,12 @@ def test_readme_commands_run(command, tmp_path):
             r"SPEED \w+ flat_solve=[0-9.]+ flat_cold=[0-9.]+ "
             r"collocation_gamma_N10_solve=[0-9.]+ fatrop_gamma_N10_solve=[0-9.]+",
         )
+    if "end_to_end.py" in command:
+        number = r"[0-9.]+"
+        stages = " ".join(rf"{k}={number}" for k in ("startup", "plan", "verify", "write"))
+        lines = done.stdout.splitlines()
+        assert re.fullmatch(rf"E2E paper_transfer wall={number} {stages} status=solved", lines[0])
+        assert re.fullmatch(rf"E2E_MEDIAN wall={number}", lines[-1])
     if "path_timing.py" in command:
         wander = [line for line in done.stdout.splitlines() if line.startswith("WANDER ")]
         assert [w.split()[1] for w in wander] == ["transfer", "swing_up"]
