@@ -231,6 +231,14 @@ def pattern_label(signs: tuple[int, ...], switches: int = 0) -> str:
     return words + (f" ({switches} switch{'es' if switches > 1 else ''})" if switches else "")
 
 
+def _start(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed) -> np.ndarray:
+    """The first round's initial vector: from the seed trajectory if there is one, else the
+    closed form through the nodes."""
+    if seed is None:
+        return initial_guess(nlp, problem, signs)
+    return seeded_guess(nlp, problem, signs, seed)
+
+
 def solve_for_signs(
     problem: Problem,
     signs: tuple[int, ...],
@@ -271,14 +279,7 @@ def solve_for_signs(
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
-        if x0 is None:
-            x0 = (
-                initial_guess(nlp, problem, signs)
-                if seed is None
-                else seeded_guess(nlp, problem, signs, seed)
-            )
-        else:
-            x0 = nlp.complete(x0, p)
+        x0 = _start(nlp, problem, signs, seed) if x0 is None else nlp.complete(x0, p)
         lbx, ubx = _bounds(nlp, problem)
         left = None if limit is None else max(limit - iterations, 1)
         arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
