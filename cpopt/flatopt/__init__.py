@@ -275,7 +275,7 @@ def solve_for_signs(
         label = pattern + (f", refinement {round_ - 1}" if round_ > 1 else "")
         progress.stage(f"flat optimizer: {label}")
         tic = time.perf_counter()
-        nlp = build(problem, signs, grids)
+        nlp = build(problem, signs, grids, warm=seed is not None)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
