@@ -126,6 +126,16 @@ def holding_torque(arm: Arm, q: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=32)
+def state_derivative(arm: Arm) -> ca.Function:
+    """``(x, tau) -> xdot``: the full dynamics in first-order form, x = (q, qd), the passive
+    joint free under the actuated torques tau (2,)."""
+    x = ca.SX.sym("x", 6)
+    tau = ca.SX.sym("tau", 2)
+    qdd = arm_dynamics(arm)["forward"](x[:3], x[3:], tau)
+    return ca.Function("state_derivative", [x, tau], [ca.vertcat(x[3:], qdd)])
+
+
+@lru_cache(maxsize=32)
 def rk4_step(arm: Arm, substeps: int = 8) -> ca.Function:
     """``(x, tau, h) -> (x_next, states)``: the joint state x = (q, qd) after h [s] under the
     constant torque tau (RK4, ``substeps`` steps), and the states at the start of each step
@@ -133,10 +143,10 @@ def rk4_step(arm: Arm, substeps: int = 8) -> ca.Function:
     x = ca.SX.sym("x", 6)
     tau = ca.SX.sym("tau", 2)
     h = ca.SX.sym("h")
-    forward = arm_dynamics(arm)["forward"]
+    derivative = state_derivative(arm)
 
     def f(y):
-        return ca.vertcat(y[3:6], forward(y[0:3], y[3:6], tau))
+        return derivative(y, tau)
 
     dt, y, states = h / substeps, x, []
     for _ in range(substeps):

@@ -24,7 +24,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from ..dynamics import rk4_step
+from ..dynamics import rk4_step, state_derivative
 from ..kinematics import kinematic_functions
 from ..nodes import node_names
 from ..objectives import weights
@@ -32,7 +32,7 @@ from ..plan import Node
 from ..problem import Problem
 from ..simulate import pose_states
 from ..solver import SolverStats, ipopt_options, read_stats
-from .joint_plan import JointPlan, joint_functions
+from .joint_plan import JointPlan
 from .transcribe import NODE_FIELDS, cold_guess
 
 SUBSTEPS = 8
@@ -42,13 +42,6 @@ SUBSTEPS = 8
 
 class SeedUnsupportedError(ValueError):
     """A problem the lean transcription does not take (free times, objective terms)."""
-
-
-def _rhs(arm) -> ca.Function:
-    """``(x, tau) -> xdot`` of the full dynamics, x = (q, qd)."""
-    x, tau = ca.SX.sym("x", 6), ca.SX.sym("tau", 2)
-    qdd = joint_functions(arm)(x[:3], x[3:], tau)[0]
-    return ca.Function("rhs", [x, tau], [ca.vertcat(x[3:], qdd)])
 
 
 def _intervals(problem: Problem, count: int) -> tuple[np.ndarray, list[int]]:
@@ -126,7 +119,7 @@ def hermite_simpson(problem: Problem, intervals: int):
     n = knots.size - 1
     X, M, U = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n), ca.MX.sym("U", 2, n)
     h = ca.DM(np.diff(knots)).T
-    rhs = _rhs(problem.arm).map(n)
+    rhs = state_derivative(problem.arm).map(n)
     f0, f1, fm = rhs(X[:, :-1], U), rhs(X[:, 1:], U), rhs(M, U)
     # Hermite-Simpson: the midpoint state of the cubic through the knots, Simpson's rule
     mid = M - 0.5 * (X[:, :-1] + X[:, 1:]) - ca.repmat(h / 8, 6, 1) * (f0 - f1)

@@ -135,10 +135,12 @@ def kept_crossings(
     return tuple(out)
 
 
-def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS) -> Seed:
+def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS, lean_only: bool = False) -> Seed:
     """Solve the problem by coarse collocation without the regularity constraint and read where
     its gamma crosses zero (see the module docstring). A failed solve still seeds (its last
-    iterate) unless it returned no plan at all; nothing here raises on a valid problem."""
+    iterate) unless it returned no plan at all; nothing here raises on a valid problem. With
+    ``lean_only`` a problem the Hermite-Simpson transcription does not take gets no seed (no
+    trajectory) instead of rockit's, which takes seconds to build."""
     from ..collocation import collocate, joint_trajectory
     from ..collocation.hermite_simpson import SeedUnsupportedError, hermite_simpson
 
@@ -146,7 +148,9 @@ def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS) -> Seed:
     try:
         try:
             status, plan, stats = hermite_simpson(problem, intervals)
-        except SeedUnsupportedError:  # free times, other objectives: rockit's transcription
+        except SeedUnsupportedError:  # other objectives: rockit's transcription
+            if lean_only:
+                raise
             result = collocate(problem, intervals=intervals, gamma_constraint=False)
             status, plan, stats = result.status, result.plan, result.solver
         traj = joint_trajectory(plan) if plan is not None else None
@@ -168,17 +172,6 @@ def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS) -> Seed:
         else (),
     )
     return Seed(traj, report)
-
-
-def phase_signs(traj: Trajectory, phases: list[tuple[int, float, float]]) -> tuple[int, ...]:
-    """The sign of the seed's gamma over each phase (file phase, start [s], end [s]): the sign
-    of its integral there."""
-    out = []
-    for _, a, b in phases:
-        inside = (traj.t >= a) & (traj.t <= b)
-        g = traj.gamma[inside] if inside.sum() > 1 else np.interp([a, b], traj.t, traj.gamma)
-        out.append(1 if float(np.mean(g)) >= 0 else -1)
-    return tuple(out)
 
 
 def state_at(traj: Trajectory, t: float, sign: int, gamma_min: float, K: float, g0: float):
@@ -233,7 +226,6 @@ __all__ = [
     "SeedReport",
     "coarse_seed",
     "kept_crossings",
-    "phase_signs",
     "seeded_values",
     "state_at",
 ]

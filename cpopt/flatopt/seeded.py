@@ -34,6 +34,7 @@ from .switching import (
     Search,
     Solve,
     neighbours,
+    pattern_of,
     seed_pattern,
     with_switches,
 )
@@ -60,13 +61,10 @@ class Stage:
 
 
 def solve_pattern(solve: Solve, problem: Problem, pattern: Pattern, start, limit=None):
-    """Solve one pattern with its switch times held, started from the trajectory ``start``."""
+    """Solve one pattern with its switch times held, started from the trajectory ``start``
+    (from the closed form through the nodes when it is None)."""
     augmented, switches = with_switches(problem, pattern.times, free_times=False)
     return solve(augmented, pattern.signs, switches, seed=start, limit=limit)
-
-
-def _pattern_of(attempt) -> Pattern:
-    return Pattern(attempt.switch_times, tuple(ph.sigma for ph in attempt.plan.phases))
 
 
 def _better(a, b) -> bool:
@@ -80,7 +78,7 @@ def polish(solve: Solve, problem: Problem, best, budget: float, figures: Stage):
     spent less than ``budget`` seconds. Returns the best attempt and every attempt made."""
     attempts = []
     start = sample(best.plan)
-    for pattern in neighbours(problem, _pattern_of(best)):
+    for pattern in neighbours(problem, pattern_of(best)):
         if figures.time_s >= budget:
             break
         progress.stage(f"switch search: polish, {len(pattern.times)} switch(es)")
@@ -124,8 +122,7 @@ def search(problem: Problem, solve: Solve) -> Search:
     tried.append(best)
     if best.status != "solved":  # the closed form through the seed's switch states
         tic = time.perf_counter()
-        augmented, switches = with_switches(problem, pattern.times, free_times=False)
-        retry = solve(augmented, pattern.signs, switches)
+        retry = solve_pattern(solve, problem, pattern, None)
         flat.add(retry, tic)
         tried.append(retry)
         best = retry if _better(retry, best) else best

@@ -28,7 +28,7 @@ import numpy as np
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..plan import Node
 from ..problem import MAX_SWITCHES, Problem
-from .seed import SEED_INTERVALS, Seed
+from .seed import Seed, coarse_seed
 
 GAIN = 0.01
 """``auto`` keeps a switch only when it lowers the cost by at least this fraction."""
@@ -314,29 +314,36 @@ def within_budget(times: tuple[float, ...], budget: int, duration: float) -> tup
     return tuple(kept)
 
 
+def signs_on_grid(problem: Problem, pattern: Pattern) -> np.ndarray:
+    """A pattern's sign of gamma at :data:`GRID` equally spaced times over the motion."""
+    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
+    cuts = np.array([b for _, _, b in _phases(problem, pattern.times)[:-1]])
+    return np.take(pattern.signs, np.searchsorted(cuts, t, side="right"))
+
+
+def gamma_signs_on_grid(problem: Problem, traj) -> np.ndarray:
+    """The sign (+1 or -1) of a sampled trajectory's gamma at the :data:`GRID` times."""
+    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
+    return np.where(np.interp(t, traj.t, traj.gamma) >= 0, 1, -1)
+
+
+def agreement(problem: Problem, pattern: Pattern, wanted: np.ndarray) -> int:
+    """At how many of the :data:`GRID` times a pattern has the sign ``wanted`` there."""
+    return int(np.sum(signs_on_grid(problem, pattern) == wanted))
+
+
 def agreeing(problem: Problem, times: tuple[float, ...], wanted: np.ndarray) -> Pattern | None:
     """Of the signs the pins allow for switches at ``times``, the pattern that agrees with the
-    signs ``wanted`` on :data:`GRID` equally spaced times over the motion the longest; None
-    when the pins allow none."""
-    allowed = sign_assignments(problem, times)
-    if not allowed:
-        return None
-    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
-    cuts = np.array([b for _, _, b in _phases(problem, times)[:-1]])
-    phase = np.searchsorted(cuts, t, side="right")
-    return Pattern(
-        times, max(allowed, key=lambda signs: int(np.sum(np.take(signs, phase) == wanted)))
-    )
+    signs ``wanted`` (:func:`agreement`) the longest; None when the pins allow none."""
+    allowed = [Pattern(times, signs) for signs in sign_assignments(problem, times)]
+    return max(allowed, key=lambda p: agreement(problem, p, wanted)) if allowed else None
 
 
 def seed_pattern(problem: Problem, seed: Seed, budget: int) -> Pattern | None:
     """The pattern a seed suggests: its crossings (at most ``budget``) and, of the signs the pins
     allow for them, the one that agrees with the sign of the seed's gamma the longest."""
     times = within_budget(seed.report.switch_times, budget, problem.nodes[-1].t)
-    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
-    return agreeing(
-        problem, times, np.where(np.interp(t, seed.trajectory.t, seed.trajectory.gamma) >= 0, 1, -1)
-    )
+    return agreeing(problem, times, gamma_signs_on_grid(problem, seed.trajectory))
 
 
 def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
@@ -344,9 +351,7 @@ def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
     them takes its neighbours' sign), then each switch dropped whose shorter side is at most
     :data:`POLISH_SPAN` of the motion, the shortest stretch first; each with the signs that
     agree with ``old`` the longest."""
-    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
-    cuts = np.array([b for _, _, b in _phases(problem, old.times)[:-1]])
-    wanted = np.take(old.signs, np.searchsorted(cuts, t, side="right"))
+    wanted = signs_on_grid(problem, old)
     times = sorted(old.times)
     merged = [(times[j + 1] - times[j], (j, j + 1)) for j in range(len(times) - 1)]
     bounds = [0.0, *times, problem.nodes[-1].t]
@@ -369,8 +374,6 @@ def _solve(solve: Solve, problem: Problem, pattern: Pattern, abandon=None):
     new pattern flips the sign of a long stretch its CP curve asks for the link turned by half
     a turn, and a failed solve costs its whole iteration limit.)"""
     augmented, switches = with_switches(problem, pattern.times)
-    if abandon is None:
-        return solve(augmented, pattern.signs, switches)
     return solve(augmented, pattern.signs, switches, abandon=abandon)
 
 
@@ -393,24 +396,13 @@ def dominated(best: float):
 def seed_order(problem: Problem, patterns: list[Pattern]) -> list[Pattern]:
     """The patterns with the one the coarse unconstrained collocation agrees with first (the
     lean seed only, 0.3 s; where it does not apply, or fails, the order stays)."""
-    from ..collocation import joint_trajectory
-    from ..collocation.hermite_simpson import hermite_simpson
-
     if len(patterns) < 2:
         return patterns
-    try:
-        _, plan, _ = hermite_simpson(problem, SEED_INTERVALS)
-    except (ValueError, RuntimeError, ArithmeticError):  # unsupported, or CasADi failed
+    seed = coarse_seed(problem, lean_only=True)
+    if seed.trajectory is None:
         return patterns
-    traj = joint_trajectory(plan)
-    t = np.linspace(0.0, problem.nodes[-1].t, GRID)
-    wanted = np.where(np.interp(t, traj.t, traj.gamma) >= 0, 1, -1)
-    cuts = [np.array([b for _, _, b in _phases(problem, p.times)[:-1]]) for p in patterns]
-    agree = [
-        int(np.sum(np.take(p.signs, np.searchsorted(c, t, side="right")) == wanted))
-        for p, c in zip(patterns, cuts, strict=True)
-    ]
-    return [p for _, p in sorted(zip(agree, patterns, strict=True), key=lambda a: -a[0])]
+    wanted = gamma_signs_on_grid(problem, seed.trajectory)
+    return sorted(patterns, key=lambda p: -agreement(problem, p, wanted))
 
 
 def first_attempts(solve: Solve, problem: Problem, patterns: list[Pattern]) -> list:
@@ -424,7 +416,8 @@ def first_attempts(solve: Solve, problem: Problem, patterns: list[Pattern]) -> l
     return attempts
 
 
-def _pattern(attempt) -> Pattern:
+def pattern_of(attempt) -> Pattern:
+    """The pattern (switch times, signs) of a solved attempt."""
     return Pattern(attempt.switch_times, tuple(ph.sigma for ph in attempt.plan.phases))
 
 
@@ -439,7 +432,7 @@ def candidates(problem: Problem, best, budget: int) -> list[Pattern]:
     farther than a tenth of the motion from there (a one-sign plan need not touch the margin
     near the crossings of the unconstrained optimum: the benchmark swing-up binds at 1.51 s
     and 0 s, and crosses at 1.04 s)."""
-    old = _pattern(best)
+    old = pattern_of(best)
     duration = problem.nodes[-1].t
     out: list[Pattern] = []
     for stretch in stretches(best.active_gamma, duration):

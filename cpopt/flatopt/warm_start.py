@@ -81,22 +81,28 @@ def initial_guess(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...]) -> np.
     else:
         blocks, coefficients = {}, spline_coefficients(problem, plan)
     p = nlp.parameters(problem.values)
-    x = nlp.complete(_core(nlp, problem, plan, coefficients, blocks), p)
+    x = nlp.complete(_core(nlp, problem, _moved_xi(problem, plan), coefficients, blocks), p)
     return x if o.curve != "path_timing" else _joined_timing(nlp, problem, x, p)
 
 
-def _core(nlp: FlatNLP, problem: Problem, plan: CPPlan, coefficients: list, blocks: dict):
-    """The core decision variables: node values (xi as the initial plan moved it), zero
-    compensator inputs, the margin at gamma_min, the coefficients and path blocks."""
+def _moved_xi(problem: Problem, plan: CPPlan) -> dict[str, float]:
+    """The problem's values with xi (and xi after a via state's reset) as the initial plan
+    moved them."""
+    values = dict(problem.values)
+    for name, node in zip(node_names(len(plan.nodes)), plan.nodes, strict=True):
+        values[f"{name}.xi"] = node.state()[6]
+        if f"{name}.xi_after" in values:
+            values[f"{name}.xi_after"] = node.state(after=True)[6]
+    return values
+
+
+def _core(nlp: FlatNLP, problem: Problem, values: dict, coefficients: list, blocks: dict):
+    """The core decision variables: freed node values from ``values`` (SI), zero compensator
+    inputs, the margin at gamma_min, the coefficients and path blocks."""
     o = problem.spec.optimizer
-    node_index = {name: i for i, name in enumerate(node_names(len(plan.nodes)))}
-    values = problem.values
     core = []
     for block in nlp.layout.blocks:
-        if block.kind == "value" and block.name.endswith((".xi", ".xi_after")):
-            node = plan.nodes[node_index[block.name.split(".")[0]]]
-            core.append(node.state(after=block.name.endswith("after"))[6])
-        elif block.kind == "value":
+        if block.kind == "value":
             core.append(values[block.name])
         elif block.kind == "alpha":
             core.extend([0.0] * block.size)
@@ -142,19 +148,16 @@ def seeded_guess(
     o = problem.spec.optimizer
     values = seeded_values(problem, signs, seed)
     p = nlp.parameters(values)
-    core = np.zeros(nlp.layout.size)
-    start, where = 0, []
+    basis = SplineBasis(o.degree, coefficient_count(o))
+    zero = [np.zeros((basis.count, 2))] * (len(problem.nodes) - 1)
+    core = _core(nlp, problem, values, zero, {})  # the boundary rows follow from the values
+    where, start = [], 0
     for block in nlp.layout.blocks:
-        if block.kind == "value":
-            core[start] = values[block.name]
-        elif block.kind == "margin":
-            core[start] = o.gamma_min
-        elif block.kind == "coefficients":
+        if block.kind == "coefficients":
             where.append((block, start))
         start += block.size
     outs = nlp.unpack(nlp.complete(core, p), p)
     times = [n.t for n in nodes_from_values(values, len(problem.nodes))]
-    basis = SplineBasis(o.degree, coefficient_count(o))
     for k in range(len(problem.nodes) - 1):
         blocks = [(b, at) for b, at in where if b.phase == k]
         free = np.zeros(basis.count, bool)
