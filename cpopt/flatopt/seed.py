@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..budget import check_time
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..problem import Problem
 from ..trajectory import Trajectory, gamma_crossings
@@ -155,6 +156,7 @@ def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS, lean_only: bo
             status, plan, stats = result.status, result.plan, result.solver
         traj = joint_trajectory(plan) if plan is not None else None
     except (RuntimeError, ValueError, ArithmeticError) as err:  # CasADi's errors are these
+        check_time()  # a time limit that CasADi turned into a RuntimeError is not a failed seed
         traj, status, stats = None, f"failed: {str(err).splitlines()[0][:80]}", None
     found = gamma_crossings(traj.t, traj.gamma) if traj is not None else ()
     node_times = [n.t for n in problem.nodes]
