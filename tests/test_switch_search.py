@@ -2,12 +2,14 @@
 pattern it suggests, the warm start fitted to it, and a search that never raises."""
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from cpopt.flatopt import optimize
 from cpopt.flatopt.seed import coarse_seed, kept_crossings
+from cpopt.flatopt.seeded import worth_polishing
 from cpopt.flatopt.switching import neighbours, seed_pattern, with_switches
 from cpopt.problem import load_problem, parse_problem
 
@@ -75,6 +77,24 @@ def test_the_seeded_transfer_reaches_the_unconstrained_cost(transfer):
     assert figures["method"] == "seed"
     assert {"seed", "flat", "polish"} <= set(figures)
     assert figures["flat"]["iterations"] > 0 and figures["seed"]["time_s"] > 0
+    # 40427 is below the seed's 40741: no neighbour pattern is tried
+    assert figures["polish"]["patterns"] == 0 and "no polish" in figures["summary"]
+
+
+def test_the_polish_is_skipped_only_near_the_seeds_cost(transfer, transfer_seed):
+    """Within POLISH_GAIN (1 %) of the seed's 40741 the polish cannot gain; above it, or for a
+    failed plan, or when the duration is free, the rule says nothing."""
+    seed_cost = transfer_seed.report.objective
+    assert seed_cost == pytest.approx(40740.7, rel=1e-3)
+
+    def plan(status, objective):
+        return SimpleNamespace(status=status, objective=objective)
+
+    assert not worth_polishing(transfer, plan("solved", 1.009 * seed_cost), transfer_seed)
+    assert worth_polishing(transfer, plan("solved", 1.011 * seed_cost), transfer_seed)
+    assert not worth_polishing(transfer, plan("max_iterations", 0.5 * seed_cost), transfer_seed)
+    free_duration = SimpleNamespace(free={"duration": (0.5, 2.0)})
+    assert worth_polishing(free_duration, plan("solved", 0.5 * seed_cost), transfer_seed)
 
 
 def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_seed):

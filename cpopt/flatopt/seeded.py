@@ -12,7 +12,10 @@ seed``, the default; route (b) of issue 11).
 3. **Polish**: the patterns one switch away (:func:`cpopt.flatopt.switching.neighbours`),
    each started from the plan solved so far and given at most
    :data:`~cpopt.flatopt.switching.POLISH_LIMIT` iterations, while the polish has spent less
-   than the flat solve did; the cheapest solved plan is kept.
+   than the flat solve did; the cheapest solved plan is kept. A plan that already costs no
+   more than :data:`POLISH_GAIN` above the seed (the unconstrained optimum on a coarse grid)
+   is not polished: no pattern can gain more than that (the benchmark transfer: 40427 against
+   the seed's 40741, where the polish spent 150 iterations, 2 s, and found nothing).
 
 Nothing here raises on a valid problem: a seed that fails or suggests no allowed pattern hands
 the problem to the greedy search (:func:`cpopt.flatopt.switching.search`), which the summary
@@ -21,6 +24,7 @@ says.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -58,6 +62,23 @@ class Stage:
     def as_dict(self) -> dict:
         """JSON-ready figures."""
         return {"iterations": self.iterations, "time_s": self.time_s, "patterns": self.tried}
+
+
+POLISH_GAIN = 0.01
+"""Relative cost above the seed's below which the polish is skipped."""
+
+
+def worth_polishing(problem: Problem, best, seed: Seed) -> bool:
+    """True when the solved plan ``best`` may still gain from the polish: its objective is more
+    than :data:`POLISH_GAIN` above the seed's. The seed's objective is the same functional
+    without the regularity constraint (a lower bound up to its coarse grid's error), so it is
+    compared only when the motion's duration is fixed (a seed keeps freed times at their
+    guesses)."""
+    if best.status != "solved" or not math.isfinite(seed.report.objective):
+        return best.status == "solved"
+    if "duration" in problem.free:
+        return True
+    return best.objective > (1 + POLISH_GAIN) * seed.report.objective
 
 
 def solve_pattern(solve: Solve, problem: Problem, pattern: Pattern, start, limit=None):
@@ -127,13 +148,17 @@ def search(problem: Problem, solve: Solve) -> Search:
         tried.append(retry)
         best = retry if _better(retry, best) else best
     polished = Stage()
-    if best.status == "solved":
+    if worth_polishing(problem, best, seed):
         best, more = polish(solve, problem, best, flat.time_s, polished)
         tried += more
+        finish = f"polish tried {polished.tried} neighbour(s)"
+    else:
+        finish = "no polish" + (
+            f" (within {POLISH_GAIN:.0%} of the seed's cost)" if best.status == "solved" else ""
+        )
     summary = (
         f"{len(best.switch_times)} switch(es) ({wanted} asked): seed crossings at "
-        f"{_times(seed.report.crossings)}, pattern {_times(pattern.times)}; polish tried "
-        f"{polished.tried} neighbour(s)"
+        f"{_times(seed.report.crossings)}, pattern {_times(pattern.times)}; {finish}"
     )
     figures = {
         "method": "seed",

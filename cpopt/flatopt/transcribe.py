@@ -511,8 +511,15 @@ def _phase(tr: _Transcription, k: int, samples: PhaseSamples) -> None:
     tr.lifted.append(ca.vec(lifted))
     tr.lifted_values.append(ca.vec(P_all))
     where = [(k, float(sj)) for sj in s]
+    # A solve started from a seed has its rows in normalised time (times h^r): a short phase's
+    # high derivatives are large in seconds (1e4-1e5 m/s^4 after a switch at 0.1 s), and rows
+    # that large left Ipopt crawling at an absolute infeasibility of 1e-4 until it stopped at
+    # an "acceptable" point (the benchmark transfer: 259 iterations; 164 and converged
+    # scaled). From the closed form the scaled rows were measured worse (transfer_switch's
+    # greedy search diverged on both switch patterns), so cold starts keep seconds.
+    row_scale = ca.repmat(ca.horzcat(*[h**r for r in range(5)]), 2, len(s)) if tr.warm else 1
     tr.g.add(
-        ca.vec(lifted - P_all),
+        ca.vec((lifted - P_all) * row_scale),
         0,
         0,
         f"lifted samples (phase {k + 1})",
