@@ -132,13 +132,20 @@ def with_switches(problem, max_iter: int = 1000):
 def run_flat(problem, repeats: int, label: str, method: str = "flat") -> Row:
     """Solve with the flat optimizer ``repeats`` times; measure the last plan."""
     from cpopt.flatopt import optimize
+    from cpopt.integrate import DivergenceError
+    from cpopt.kinematics import ReachError
+    from cpopt.plan import SingularPlanError
     from cpopt.simulate import simulate_open_loop
     from cpopt.trajectory import metrics, sample
 
     results, cold, cpu = _timed(lambda: optimize(problem), repeats)
     first, last = results[0], results[-1]
     plan = last.plan
-    cost = metrics(plan, sample(plan, FINE)).torque_sq_integral
+    try:
+        cost = metrics(plan, sample(plan, FINE)).torque_sq_integral
+        replay = simulate_open_loop(plan).final_state_error
+    except (ReachError, SingularPlanError, DivergenceError):  # a failed plan: its row says so
+        cost = replay = float("nan")
     return Row(
         problem.name,
         method,
@@ -148,7 +155,7 @@ def run_flat(problem, repeats: int, label: str, method: str = "flat") -> Row:
         last.solver.iterations,
         cost,
         plan.min_abs_gamma()[0],
-        simulate_open_loop(plan).final_state_error,
+        replay,
         last.status,
         cold,
         cpu,

@@ -16,7 +16,6 @@ The controller may use a nominal arm while the simulated plant is another (model
 
 from __future__ import annotations
 
-import bisect
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -25,7 +24,8 @@ import numpy as np
 
 from . import flat, progress
 from .dynamics import arm_dynamics, inverse_dynamics
-from .integrate import STEPS_PER_SECOND, DivergenceError, integrate
+from .extrapolation import integrate_along
+from .integrate import STEPS_PER_SECOND, DivergenceError
 from .kinematics import inverse_derivatives, inverse_position, joint_state, kinematic_functions
 from .mapping import mapped
 from .plan import CPPlan, Node
@@ -95,64 +95,6 @@ def _result(plan, mode, t, states, tau=None) -> SimulationResult:
     )
 
 
-def _integrate(rhs, x0, t0, t1, samples, rtol, atol, steps_per_second=STEPS_PER_SECOND):
-    """Bounded DOP853 (:func:`cpopt.integrate.integrate`); raises DivergenceError."""
-    t_eval = np.linspace(t0, t1, samples)
-    return integrate(rhs, x0, t0, t1, t_eval, rtol, atol, steps_per_second)
-
-
-class PieceRhs:
-    """``rhs(t, x)`` for a bounded integrator: one evaluation of a CasADi function of (x, the
-    local time of the polynomial piece t falls in, its length, its coefficients, extra
-    arguments) through a zero-copy buffer, so a step costs no Python evaluation of the curve
-    or of the maps. Measured on ``transfer_min_torque``: the verification's three simulations
-    took 0.46, 0.89 and 1.16 s with the curve and the torque chain evaluated in Python at
-    every call; the closed loop's function alone cost 180 us a call through CasADi's Python
-    call, 7 us through the buffer."""
-
-    def __init__(self, function: ca.Function, curve, *extra) -> None:
-        flat_function = _single_input(function)
-        self.nx = function.size1_in(0)
-        self.arg = np.zeros(flat_function.size1_in(0))
-        self.out = np.zeros(function.size1_out(0))
-        tail = np.concatenate([np.ravel(np.asarray(e, float)) for e in extra]) if extra else []
-        self.arg[self.arg.size - len(tail) :] = tail
-        self.buffer, self.trigger = flat_function.buffer()
-        self.buffer.set_arg(0, memoryview(self.arg))
-        self.buffer.set_res(0, memoryview(self.out))
-        self.breaks = curve.breaks.tolist()
-        # column-major, as CasADi stores the (degree + 1) x 2 coefficient matrix
-        self.coeffs = [np.ravel(c, order="F") for c in curve.coeffs]
-        self.last, self.piece = len(self.coeffs) - 1, -1
-
-    def __call__(self, t: float, x: np.ndarray) -> np.ndarray:
-        k = min(max(bisect.bisect_right(self.breaks, t) - 1, 0), self.last)
-        a, b = self.breaks[k], self.breaks[k + 1]
-        nx = self.nx
-        self.arg[:nx] = x
-        self.arg[nx], self.arg[nx + 1] = (t - a) / (b - a), b - a
-        if k != self.piece:
-            self.arg[nx + 2 : nx + 2 + self.coeffs[k].size] = self.coeffs[k]
-            self.piece = k
-        self.trigger()
-        return self.out.copy()
-
-
-@lru_cache(maxsize=64)
-def _single_input(function: ca.Function) -> ca.Function:
-    """The function of one vector holding all its inputs in order (each column-major), with
-    common subexpressions eliminated (SX functions stay SX)."""
-    ins = function.sx_in() if function.is_a("SXFunction") else function.mx_in()
-    kind = ca.SX if function.is_a("SXFunction") else ca.MX
-    v = kind.sym("v", sum(i.numel() for i in ins))
-    parts, start = [], 0
-    for i in ins:
-        parts.append(ca.reshape(v[start : start + i.numel()], i.shape))
-        start += i.numel()
-    options = {"cse": True} if kind is ca.SX else {}
-    return ca.Function(f"{function.name()}_flat", [v], [function.call(parts)[0]], options)
-
-
 @lru_cache(maxsize=16)
 def _jet(degree: int) -> ca.Function:
     """``(lam, h, c) -> P``: a polynomial piece ``sum_j c_j lam^j`` (c: (degree + 1) x 2) of
@@ -213,8 +155,8 @@ def simulate_reduced(
             z = z.copy()
             node = plan.nodes[k]
             z[6:8] += node.state(after=True)[6:8] - node.state()[6:8]  # the planned resets
-        rhs = PieceRhs(_reduced_rhs(K, g0, ph.curve.coeffs.shape[1] - 1), ph.curve)
-        t, zs = _integrate(rhs, z, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
+        rhs = _reduced_rhs(K, g0, ph.curve.coeffs.shape[1] - 1)
+        t, zs = integrate_along(rhs, ph.curve, z, samples, rtol, atol)
         z = zs[-1]
         ts.append(t)
         states.append(zs[:, :6])
@@ -285,10 +227,10 @@ def simulate_closed_loop(
             X[6:8] += node.state(after=True)[6:8] - node.state()[6:8]
 
         degree = ph.curve.coeffs.shape[1] - 1
-        rhs = PieceRhs(_closed_loop_rhs(model, plant or model, degree), ph.curve, gains)
+        rhs = _closed_loop_rhs(model, plant or model, degree)
         # the step size shrinks with the poles: the budget grows with them (x1 up to -10 1/s)
         rate = STEPS_PER_SECOND * max(1.0, float(np.max(np.abs(poles))) / 10)
-        t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol, rate)
+        t, Xs = integrate_along(rhs, ph.curve, X, samples, rtol, atol, (gains,), rate)
         X = Xs[-1]
         Pd = ph.curve.derivatives(t, 4)
         tau = np.asarray(mapped(f, t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
@@ -325,8 +267,8 @@ def simulate_open_loop(
     ts, states, taus = [], [], []
     for k, ph in enumerate(plan.phases):
         degree = ph.curve.coeffs.shape[1] - 1
-        rhs = PieceRhs(_open_loop_rhs(plan.arm, plant or plan.arm, degree), ph.curve, ph.sigma)
-        t, Xs = _integrate(rhs, X, ph.curve.t0, ph.curve.t1, samples, rtol, atol)
+        rhs = _open_loop_rhs(plan.arm, plant or plan.arm, degree)
+        t, Xs = integrate_along(rhs, ph.curve, X, samples, rtol, atol, (ph.sigma,))
         X = Xs[-1]
         ts.append(t)
         states.append(pose_states(plant or plan.arm, Xs))
@@ -438,7 +380,7 @@ class DivergedVerification:
 def verify(
     plan: CPPlan, residual: float, poles=DEFAULT_POLES
 ) -> Verification | DivergedVerification:
-    """Run the three simulations of a plan, each bounded (:mod:`cpopt.integrate`).
+    """Run the three simulations of a plan, each bounded (:mod:`cpopt.extrapolation`).
 
     Parameters
     ----------

@@ -10,7 +10,7 @@ import pytest
 from cpopt.flatopt import optimize
 from cpopt.flatopt.seed import coarse_seed, kept_crossings
 from cpopt.flatopt.seeded import worth_polishing
-from cpopt.flatopt.switching import neighbours, seed_pattern, with_switches
+from cpopt.flatopt.switching import neighbours, preference, seed_pattern, with_switches
 from cpopt.problem import load_problem, parse_problem
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -147,3 +147,20 @@ def test_collocation_reports_where_gamma_crosses_zero(transfer):
     assert m.gamma_sign_changes == pytest.approx((0.097, 0.397, 0.457), abs=0.01)
     assert m.min_abs_gamma == 0.0 and m.min_abs_gamma_time == m.gamma_sign_changes[0]
     assert m.as_dict()["gamma_sign_changes"] == list(m.gamma_sign_changes)
+
+
+def test_attempts_rank_solved_then_sane_then_fewest_violations():
+    """The seeded search's retry once ended with Ipopt's Invalid_Number_Detected and an
+    objective of 0, and won over a nearly feasible max_iterations plan (quick benchmark)."""
+
+    def attempt(status, ipopt, objective, violations=()):
+        return SimpleNamespace(
+            status=status, ipopt_status=ipopt, objective=objective, violations=violations
+        )
+
+    solved = attempt("solved", "Solve_Succeeded", 5e4)
+    near = attempt("max_iterations", "Maximum_Iterations_Exceeded", 4.1e4, ("one",))
+    broken = attempt("not_converged", "Invalid_Number_Detected", 0.0)
+    worse = attempt("max_iterations", "Maximum_Iterations_Exceeded", 3e4, ("one", "two"))
+    ranked = sorted([broken, worse, near, solved], key=preference, reverse=True)
+    assert ranked == [solved, near, worse, broken]

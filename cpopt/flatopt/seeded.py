@@ -39,6 +39,7 @@ from .switching import (
     Solve,
     neighbours,
     pattern_of,
+    preference,
     seed_pattern,
     with_switches,
 )
@@ -89,8 +90,8 @@ def solve_pattern(solve: Solve, problem: Problem, pattern: Pattern, start, limit
 
 
 def _better(a, b) -> bool:
-    """True when attempt a is a better plan than b (solved beats unsolved, then the cost)."""
-    return (a.status == "solved", -a.objective) > (b.status == "solved", -b.objective)
+    """True when attempt a is a better plan than b (:func:`~cpopt.flatopt.switching.preference`)."""
+    return preference(a) > preference(b)
 
 
 def polish(solve: Solve, problem: Problem, best, budget: float, figures: Stage):

@@ -421,9 +421,16 @@ def pattern_of(attempt) -> Pattern:
     return Pattern(attempt.switch_times, tuple(ph.sigma for ph in attempt.plan.phases))
 
 
+def preference(attempt) -> tuple:
+    """Sort key of attempts, the best plan largest: solved first; then an iterate with numbers
+    (Ipopt's ``Invalid_Number_Detected`` leaves an objective of 0 that must not win); then
+    the fewest violated constraints; then the lowest objective."""
+    sane = attempt.ipopt_status != "Invalid_Number_Detected" and math.isfinite(attempt.objective)
+    return (attempt.status == "solved", sane, -len(attempt.violations), -attempt.objective)
+
+
 def _best(attempts):
-    solved = [a for a in attempts if a.status == "solved"]
-    return min(solved or attempts, key=lambda a: a.objective)
+    return max(attempts, key=preference)
 
 
 def candidates(problem: Problem, best, budget: int) -> list[Pattern]:
