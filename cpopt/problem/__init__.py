@@ -11,7 +11,7 @@ paths) and :mod:`~cpopt.problem.build` (:class:`Problem` from data or a file).
 """
 
 from ..robot import ARM_KINDS
-from .build import Problem, bundled_problems, load_problem, parse_problem
+from .build import Problem, bundled_problems, load_problem, parse_problem, read_problem
 from .gamma import GammaSide, gamma_segments, gamma_sides
 from .messages import REMOVED_KEYS
 from .schema import (
@@ -84,5 +84,6 @@ __all__ = [
     "load_problem",
     "parse_problem",
     "plant_links",
+    "read_problem",
     "safe_name",
 ]

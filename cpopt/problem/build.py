@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import copy
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
 from pydantic import ValidationError
 
+from ..keypath import KeyPathError, with_values
 from ..limits import Limit, arm_limits
 from ..nodes import node_names, node_values, si_bounds
 from ..plan import Node
@@ -40,6 +42,9 @@ class Problem:
         SI units (+-inf for none).
     limits : tuple of Limit
         The arm's limits in SI units (``optimizer.limits``).
+    data : dict
+        The problem data it was validated from (the file's content, with any overrides), which
+        :meth:`replace` changes and validates again.
     """
 
     name: str
@@ -49,6 +54,7 @@ class Problem:
     spec: ProblemSpec
     free: dict[str, tuple[float, float]]
     limits: tuple[Limit, ...]
+    data: dict = field(default_factory=dict, repr=False, compare=False)
 
     @cached_property
     def values(self) -> dict[str, float]:
@@ -70,6 +76,25 @@ class Problem:
     def max_time(self) -> float:
         """Wall-clock limit of planning and verification together [s]."""
         return self.spec.optimizer.solver.max_time
+
+    def replace(self, **overrides) -> Problem:
+        """The problem with values changed by key path, validated again.
+
+        Parameters
+        ----------
+        **overrides
+            Values by key path, the syntax error messages use:
+            ``problem.replace(**{"motion.duration": 2.0, "arm.links[2].mass": 0.5})``, or
+            ``problem.replace(planner="optimize")``. Units are the file's (degrees in
+            ``theta_deg``).
+
+        Raises
+        ------
+        ProblemError
+            For a key path that does not lead into the data, or a value the file format
+            refuses, naming the key path.
+        """
+        return parse_problem(overridden(self.data, overrides, self.source), self.source, self.name)
 
     def with_print_level(self, level: int) -> Problem:
         """A copy whose Ipopt output level is ``level`` (0 silent .. 12)."""
@@ -123,7 +148,52 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
         spec=spec,
         free=si_bounds(spec.optimizer.free),
         limits=arm_limits(spec.optimizer.limits, arm),
+        data=copy.deepcopy(data),
     )
+
+
+def overridden(data: dict, overrides: dict, source: str) -> dict:
+    """A copy of problem data with values set by key path (:func:`cpopt.keypath.with_values`).
+
+    Raises
+    ------
+    ProblemError
+        For a key path that is malformed or cannot be set, naming it.
+    """
+    try:
+        return with_values(data, overrides)
+    except KeyPathError as err:
+        raise ProblemError(source, err.path, err.message) from None
+
+
+def read_problem(source: str | Path | dict, overrides: dict | None = None) -> Problem:
+    """A problem from a YAML file or from problem data, with values set by key path.
+
+    Parameters
+    ----------
+    source : str, Path or dict
+        A problem file, or its content as a dict (not changed).
+    overrides : dict, optional
+        Values by key path (``{"motion.duration": 2.0}``), set before validation.
+
+    Raises
+    ------
+    ProblemError
+        For an unreadable file, a key path that cannot be set or invalid content, naming the
+        source and the key path.
+    """
+    if isinstance(source, dict):
+        return parse_problem(overridden(source, overrides or {}, "<python>"))
+    if not isinstance(source, str | Path):
+        raise TypeError(f"a problem file or a dict of problem data, not {type(source).__name__}")
+    name = str(source)
+    try:
+        data = read_yaml(source)
+    except YamlInputError as err:
+        raise ProblemError(name, err.path, err.message) from None
+    if overrides and isinstance(data, dict):
+        data = overridden(data, overrides, name)
+    return parse_problem(data, name, name=safe_name(Path(source).stem))
 
 
 def load_problem(path: str | Path) -> Problem:
@@ -134,12 +204,7 @@ def load_problem(path: str | Path) -> Problem:
     ProblemError
         For a missing, unreadable, empty, oversized or malformed file, or invalid content.
     """
-    source = str(path)
-    try:
-        data = read_yaml(path)
-    except YamlInputError as err:
-        raise ProblemError(source, err.path, err.message) from None
-    return parse_problem(data, source, name=safe_name(Path(path).stem))
+    return read_problem(path)
 
 
 def bundled_problems() -> list[Path]:
