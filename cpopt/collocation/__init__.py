@@ -33,6 +33,7 @@ from .joint_plan import (
     ReplayCheck,
     joint_functions,
     joint_metrics,
+    joint_sample_at,
     joint_trajectory,
     replay,
 )
@@ -139,6 +140,7 @@ __all__ = [
     "collocate",
     "joint_functions",
     "joint_metrics",
+    "joint_sample_at",
     "joint_trajectory",
     "replay",
 ]
