@@ -101,7 +101,7 @@ class Solution(results.Solution):
         """
         return results.write_solution(self, directory)
 
-    def plot(self, kind: str = "third_link"):
+    def plot(self, kind: str = "third_link", ax=None):
         """A figure of the plan, as ``cpopt solve --plot`` draws it.
 
         Parameters
@@ -111,6 +111,9 @@ class Solution(results.Solution):
             path), ``arm`` (strobe of the arm), ``torques`` (with the problem's torque limits),
             ``gamma`` (with ``optimizer.gamma_min`` for the optimizing planners), ``tracking``
             (a tracked plan against its plan).
+        ax : matplotlib.axes.Axes, optional
+            Where to draw (for ``third_link`` and ``arm`` one per phase, or a single one);
+            a new figure otherwise. ``tracking`` always draws a new figure of three panels.
 
         Returns
         -------
@@ -130,16 +133,16 @@ class Solution(results.Solution):
             raise ValueError(f"{self.name}: no sampled plan to plot (status {self.status})")
         limits, gamma_min = self._drawn_limits()
         if kind == "torques":
-            return plotting.plot_torques(self, limits=limits)
+            return plotting.plot_torques(self, ax, limits=limits)
         if kind == "gamma":
-            return plotting.plot_gamma(self, gamma_min=gamma_min)
+            return plotting.plot_gamma(self, ax, gamma_min=gamma_min)
         if kind == "tracking":
             from .tracking import TrackingOutcome
 
             if not isinstance(self.tracking, TrackingOutcome):
                 raise ValueError(f"{self.name}: the plan was not tracked (see cpopt.track)")
             return plotting.plot_tracking(self)
-        return {"third_link": plotting.plot_third_link, "arm": plotting.plot_arm}[kind](self)
+        return {"third_link": plotting.plot_third_link, "arm": plotting.plot_arm}[kind](self, ax)
 
     def _drawn_limits(self):
         """The torque limits and gamma margin the CLI draws (none without a problem)."""
