@@ -37,7 +37,7 @@ from .joint_plan import (
     joint_trajectory,
     replay,
 )
-from .transcribe import extract, transcription
+from .transcribe import RUN_LABEL, extract, transcription
 
 
 @dataclass(frozen=True)
@@ -133,6 +133,7 @@ def collocate(
 
 __all__ = [
     "REFINE",
+    "RUN_LABEL",
     "CollocationDetails",
     "CollocationResult",
     "JointPlan",
