@@ -66,7 +66,7 @@ def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
     """
     t = np.concatenate([np.linspace(ph.curve.t0, ph.curve.t1, per_phase) for ph in plan.phases])
     phase = np.repeat(np.arange(len(plan.phases)), per_phase)
-    cp, z = _flat_states(plan, t, phase)
+    cp, z = flat_states(plan, t, phase)
     z[:, 2] = np.unwrap(z[:, 2])
     # Start the angle on the branch of the start node (theta and theta + 2 pi are one pose).
     z[:, 2] += 2 * np.pi * np.round((plan.nodes[0].theta - z[0, 2]) / (2 * np.pi))
@@ -103,7 +103,7 @@ def sample_at(plan: CPPlan, t, along: Trajectory) -> Trajectory:
         raise ValueError(f"times must lie within the plan, [{t0:g}, {t1:g}] s")
     starts = np.array([ph.curve.t0 for ph in plan.phases])
     phase = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(plan.phases) - 1)
-    cp, z = _flat_states(plan, t, phase)
+    cp, z = flat_states(plan, t, phase)
     z[:, 2] = nearest_turn(z[:, 2], np.interp(t, along.t, along.z[:, 2]))
     reference = np.column_stack([np.interp(t, along.t, along.q[:, j]) for j in range(3)])
     return _completed(plan, t, phase, cp, z, reference)
@@ -114,8 +114,9 @@ def nearest_turn(angle: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return angle + 2 * np.pi * np.round((reference - angle) / (2 * np.pi))
 
 
-def _flat_states(plan: CPPlan, t: np.ndarray, phase: np.ndarray):
-    """CP derivatives (N, 2, 5) and third-link states (N, 8) at times t in the given phases."""
+def flat_states(plan: CPPlan, t: np.ndarray, phase: np.ndarray):
+    """CP derivatives (N, 2, 5) and third-link states (N, 8) at times t [s], each on the curve
+    of the given phase (theta as the flat map gives it, not yet on a continuous branch)."""
     arm = plan.arm
     cp = np.empty((t.size, 2, 5))
     z = np.empty((t.size, 8))
