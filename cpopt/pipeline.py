@@ -161,7 +161,7 @@ def _evaluate(plan, name, solver, status, message, partial, checks: Checks) -> S
 
 def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
     """The collocation peer: warm start (optional), solve, sample, replay open loop."""
-    from .collocation import collocate, joint_metrics, joint_trajectory, replay
+    from .collocation import RUN_LABEL, collocate, joint_metrics, joint_trajectory, replay
     from .integrate import DivergenceError
 
     warm = None
@@ -172,7 +172,7 @@ def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
         progress.ipopt_run("flat optimizer (warm start of collocation)")
         warm = optimize(problem).plan
     partial.reached("planning (collocation)")
-    progress.ipopt_run("direct collocation")
+    progress.ipopt_run(RUN_LABEL)
     result = collocate(problem, warm_start=warm)
     plan = result.plan
     traj = joint_trajectory(plan)

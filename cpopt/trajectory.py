@@ -64,30 +64,85 @@ def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
     cpopt.kinematics.ReachError
         If a sample is out of the arm's reach.
     """
-    arm = plan.arm
-    K, g0 = arm.K, arm.gravity
-    ts, phases, cps, zs = [], [], [], []
-    for i, ph in enumerate(plan.phases):
-        t = np.linspace(ph.curve.t0, ph.curve.t1, per_phase)
-        P = ph.curve.derivatives(t, 4)
-        ts.append(t)
-        phases.append(np.full(t.size, i))
-        cps.append(P)
-        zs.append(flat.inverse(P[:, :, :4], ph.sigma, K, g0))
-    t = np.concatenate(ts)
-    cp = np.concatenate(cps)
-    z = np.concatenate(zs)
+    t = np.concatenate([np.linspace(ph.curve.t0, ph.curve.t1, per_phase) for ph in plan.phases])
+    phase = np.repeat(np.arange(len(plan.phases)), per_phase)
+    cp, z = flat_states(plan, t, phase)
     z[:, 2] = np.unwrap(z[:, 2])
     # Start the angle on the branch of the start node (theta and theta + 2 pi are one pose).
     z[:, 2] += 2 * np.pi * np.round((plan.nodes[0].theta - z[0, 2]) / (2 * np.pi))
-    alpha, zdot, _ = flat.compensate(z, cp[:, :, 4], K, g0)
+    return _completed(plan, t, phase, cp, z)
+
+
+def sample_at(plan: CPPlan, t, along: Trajectory) -> Trajectory:
+    """A plan at any times in its interval, on the angle branches of a sampled trajectory.
+
+    Parameters
+    ----------
+    plan : CPPlan
+        The plan.
+    t : float or array_like
+        Times [s] within [t0, t0 + duration], in any order. At a join of two phases the
+        sample is the later phase's (the right limit), at the end the last phase's.
+    along : Trajectory
+        The plan sampled densely (:func:`sample`): theta and the revolute joint angles are
+        taken on the turn (multiple of 2 pi) nearest to it, as a continuous motion has them.
+
+    Returns
+    -------
+    Trajectory
+        One sample per time, in the order given.
+
+    Raises
+    ------
+    ValueError
+        For a time outside the plan.
+    """
+    t = np.atleast_1d(np.asarray(t, float)).ravel()
+    t0, t1 = plan.t0, plan.t0 + plan.duration
+    if t.size and not (np.all(t >= t0 - 1e-12) and np.all(t <= t1 + 1e-12)):
+        raise ValueError(f"times must lie within the plan, [{t0:g}, {t1:g}] s")
+    starts = np.array([ph.curve.t0 for ph in plan.phases])
+    phase = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(plan.phases) - 1)
+    cp, z = flat_states(plan, t, phase)
+    z[:, 2] = nearest_turn(z[:, 2], np.interp(t, along.t, along.z[:, 2]))
+    reference = np.column_stack([np.interp(t, along.t, along.q[:, j]) for j in range(3)])
+    return _completed(plan, t, phase, cp, z, reference)
+
+
+def nearest_turn(angle: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``angle`` [rad] moved by whole turns (2 pi) to lie nearest to ``reference``."""
+    return angle + 2 * np.pi * np.round((reference - angle) / (2 * np.pi))
+
+
+def flat_states(plan: CPPlan, t: np.ndarray, phase: np.ndarray):
+    """CP derivatives (N, 2, 5) and third-link states (N, 8) at times t [s], each on the curve
+    of the given phase (theta as the flat map gives it, not yet on a continuous branch)."""
+    arm = plan.arm
+    cp = np.empty((t.size, 2, 5))
+    z = np.empty((t.size, 8))
+    for i, ph in enumerate(plan.phases):
+        sel = phase == i
+        if sel.any():
+            cp[sel] = ph.curve.derivatives(t[sel], 4)
+            z[sel] = flat.inverse(cp[sel][:, :, :4], ph.sigma, arm.K, arm.gravity)
+    return cp, z
+
+
+def _completed(plan: CPPlan, t, phase, cp, z, reference=None) -> Trajectory:
+    """The trajectory of CP derivatives and third-link states: compensator, joints, torques
+    (revolute joint angles nearest to ``reference`` (N, 3) when given)."""
+    arm = plan.arm
+    alpha, zdot, _ = flat.compensate(z, cp[:, :, 4], arm.K, arm.gravity)
     accel = zdot[:, 3:6]
     q = inverse_position(arm, z[:, 0], z[:, 1], z[:, 2], t)
+    if reference is not None:
+        for j in np.flatnonzero(arm.revolute):
+            q[:, j] = nearest_turn(q[:, j], reference[:, j])
     qd, qdd = inverse_derivatives(arm, q, z[:, 3:6], accel)
     torques = inverse_dynamics(arm, q, qd, qdd)
     return Trajectory(
         t=t,
-        phase=np.concatenate(phases),
+        phase=phase,
         cp=cp,
         z=z,
         alpha=alpha,
@@ -97,7 +152,7 @@ def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
         qdd=qdd,
         tau=torques[:, :2],
         residual=torques[:, 2],
-        gamma=flat.gamma(z, K, g0),
+        gamma=flat.gamma(z, arm.K, arm.gravity),
     )
 
 

@@ -243,3 +243,48 @@ def test_the_flat_optimizer_reports_each_sign_and_its_iterations():
     assert any(line.startswith("cpopt: t: flat optimizer: gamma positive [") for line in lines)
     first = next(line for line in lines if "iteration " in line)
     assert first.startswith("cpopt: t: iteration 1 (gamma positive) [")
+
+
+def _collocation_file(directory: Path, intervals: int) -> Path:
+    """The benchmark transfer planned by collocation, as a file named like its problem."""
+    import yaml
+
+    data = yaml.safe_load((ROOT / "benchmarks" / "problems" / "transfer.yaml").read_text())
+    data.update(name="transfer_collocation", planner="collocation")
+    data["collocation"] = {"intervals": intervals}
+    path = directory / "transfer_collocation.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_collocation_reports_its_iterations(tmp_path):
+    """Ipopt's iterations inside a collocation solve, labelled as the flat optimizer's are."""
+    import io
+
+    from cpopt.pipeline import solve
+    from cpopt.problem import load_problem
+
+    stream = io.StringIO()
+    problem = load_problem(_collocation_file(tmp_path, 30))
+    with reporting(Progress(stream, verbose=True), "t"):
+        solution = solve(problem)
+    assert solution.status == "solved" and solution.solver.iterations > 5
+    lines = stream.getvalue().splitlines()
+    runs = [i for i, line in enumerate(lines) if "Ipopt run: direct collocation" in line]
+    first = next(i for i, line in enumerate(lines) if "iteration " in line)
+    assert runs and runs[0] < first
+    assert lines[first].startswith("cpopt: t: iteration 1 (direct collocation) [")
+
+
+@pytest.mark.slow
+def test_ctrl_c_inside_a_collocation_solve_exits_130(tmp_path, tmp_path_factory):
+    """Ctrl-C while Ipopt iterates on a collocation problem (its iteration callback runs
+    Python code): exit 130, one line, no traceback."""
+    path = _collocation_file(tmp_path_factory.mktemp("problem"), 300)
+    when = "iteration 1 (direct collocation)"
+    code, before, after, took = _interrupt([str(path)], when, tmp_path)
+    assert code == 130, after
+    assert any(when in line for line in before)
+    lines = after.strip().splitlines()
+    assert lines[-1] == "cpopt: interrupted" and "Traceback" not in after, after
+    print(f"stopped {took:.2f} s after SIGINT")  # reported, not asserted

@@ -139,6 +139,43 @@ def test_a_batch_runs_each_plant_as_if_alone(transfer):
     assert alone[2] > 1.5 * alone[1] > 1000 * alone[0]  # the plants differ
 
 
+def test_the_compiled_step_is_cached_on_disk_and_runs_as_the_interpreted(
+    transfer, tmp_path, monkeypatch
+):
+    """jit: the period function compiled once through cpopt.compiled's cache (named by the
+    function itself), found again without building, and the same runs as interpreted."""
+    from cpopt import compiled
+    from cpopt.tracking import simulation
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    if compiled.compiler() is None:
+        pytest.skip("no C compiler")
+    plan, ref = transfer
+    controller = make_controller("dfl", ref)  # model, gains and period are constants in it
+    step = simulation.step_function(controller, jit=False)
+    fast = simulation.compiled_step(step)
+    libraries = list((tmp_path / "cpopt").glob("tracking-step-*.so"))
+    assert len(libraries) == 1
+    assert isinstance(fast, type(step)) and fast.name() == "step"
+    rng = np.random.default_rng(3)
+    args = [rng.standard_normal(step.size1_in(i)) for i in range(step.n_in())]
+    args[4] = Plant(plan.arm).parameters()
+    for slow_out, fast_out in zip(step.call(args), fast.call(args), strict=True):
+        np.testing.assert_allclose(np.asarray(fast_out), np.asarray(slow_out), rtol=1e-12)
+    name = simulation.library_name(step)
+    assert libraries[0].name.startswith(name + "-casadi")
+    found = compiled.load_library(
+        name, simulation.SOURCES, lambda: pytest.fail("the cached step must be found, not built")
+    )
+    assert found.path == libraries[0]
+    plants = np.array([_heavier(plan.arm, e).parameters() for e in (0.0, 0.1)])
+    jit = simulate_batch(controller, plants, jit=True)
+    interpreted = simulate_batch(controller, plants, jit=False)
+    np.testing.assert_allclose(jit.max_cp_error, interpreted.max_cp_error, rtol=1e-9)
+    np.testing.assert_allclose(jit.x_final, interpreted.x_final, rtol=1e-9, atol=1e-12)
+    assert len(list((tmp_path / "cpopt").glob("tracking-step-*.so"))) == 1
+
+
 def test_friction_noise_and_saturation_each_show(transfer):
     plan, ref = transfer
     arm = plan.arm

@@ -33,10 +33,11 @@ from .joint_plan import (
     ReplayCheck,
     joint_functions,
     joint_metrics,
+    joint_sample_at,
     joint_trajectory,
     replay,
 )
-from .transcribe import extract, transcription
+from .transcribe import RUN_LABEL, extract, transcription
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,7 @@ def collocate(
 
 __all__ = [
     "REFINE",
+    "RUN_LABEL",
     "CollocationDetails",
     "CollocationResult",
     "JointPlan",
@@ -139,6 +141,7 @@ __all__ = [
     "collocate",
     "joint_functions",
     "joint_metrics",
+    "joint_sample_at",
     "joint_trajectory",
     "replay",
 ]

@@ -106,9 +106,64 @@ def joint_trajectory(plan: JointPlan) -> Trajectory:
     the open-loop replay (:func:`replay`).
     """
     f = plan.fine
-    n = f["t"].size
+    return _joint_samples(plan, f["t"], f["q"], f["qd"], f["tau"])
+
+
+def joint_sample_at(plan: JointPlan, t) -> Trajectory:
+    """A collocation plan at any times in its interval (as :func:`joint_trajectory` samples it).
+
+    Between the samples of the collocation polynomials (``REFINE`` per control interval), q is
+    the cubic Hermite interpolant of q and qd, and qd that of qd and the accelerations the
+    interval's torque gives; at the samples both are the polynomials' values. The torque is
+    the piecewise-constant one (right-continuous, :meth:`JointPlan.torque_at`).
+
+    Parameters
+    ----------
+    plan : JointPlan
+        The plan.
+    t : float or array_like
+        Times [s] within the plan, in any order.
+
+    Raises
+    ------
+    ValueError
+        For a time outside the plan.
+    """
+    t = np.atleast_1d(np.asarray(t, float)).ravel()
+    f = plan.fine
+    tf = f["t"]
+    if t.size and not (np.all(t >= tf[0] - 1e-12) and np.all(t <= tf[-1] + 1e-12)):
+        raise ValueError(f"times must lie within the plan, [{tf[0]:g}, {tf[-1]:g}] s")
+    # the segment [tf[i], tf[i + 1]] holding each time (a repeated time is skipped)
+    i = np.clip(np.searchsorted(tf, t, side="right") - 1, 0, tf.size - 2)
+    i = np.where(tf[i + 1] > tf[i], i, np.maximum(i - 1, 0))
+    forward = mapped(arm_dynamics(plan.arm)["forward"], 2 * i.size)
+    tau = f["tau"][i]  # the torque on the segment, at both its ends
+    ends_q = np.concatenate([f["q"][i], f["q"][i + 1]])
+    ends_qd = np.concatenate([f["qd"][i], f["qd"][i + 1]])
+    qdd = np.asarray(forward(ends_q.T, ends_qd.T, np.concatenate([tau, tau]).T)).T
+    h = (tf[i + 1] - tf[i])[:, None]
+    s = (t[:, None] - tf[i][:, None]) / h
+    q = _hermite(s, h, f["q"][i], f["qd"][i], f["q"][i + 1], f["qd"][i + 1])
+    qd = _hermite(s, h, f["qd"][i], qdd[: i.size], f["qd"][i + 1], qdd[i.size :])
+    torque = np.array([plan.torque_at(ti) for ti in t]).reshape(-1, 2)
+    return _joint_samples(plan, t, q, qd, torque)
+
+
+def _hermite(s, h, y0, dy0, y1, dy1):
+    """The cubic Hermite interpolant at normalised times s (N, 1) of segments of lengths h."""
+    h00 = 2 * s**3 - 3 * s**2 + 1
+    h10 = s**3 - 2 * s**2 + s
+    h01 = -2 * s**3 + 3 * s**2
+    h11 = s**3 - s**2
+    return h00 * y0 + h10 * h * dy0 + h01 * y1 + h11 * h * dy1
+
+
+def _joint_samples(plan: JointPlan, t, q, qd, tau) -> Trajectory:
+    """The trajectory of joint states and torques at times t (see :func:`joint_trajectory`)."""
+    n = t.size
     step = mapped(joint_functions(plan.arm), n)
-    qdd, gamma, s, sdot, sddot = (np.asarray(v).T for v in step(f["q"].T, f["qd"].T, f["tau"].T))
+    qdd, gamma, s, sdot, sddot = (np.asarray(v).T for v in step(q.T, qd.T, tau.T))
     K = plan.arm.K
     theta, w = s[:, 2], sdot[:, 2]
     along = np.column_stack([np.cos(theta), np.sin(theta)])
@@ -121,18 +176,16 @@ def joint_trajectory(plan: JointPlan) -> Trajectory:
     z = np.column_stack([s, sdot, xi, np.full(n, np.nan)])
     node_times = [node.t for node in plan.nodes]
     return Trajectory(
-        t=f["t"],
-        phase=np.clip(
-            np.searchsorted(node_times, f["t"], side="right") - 1, 0, len(node_times) - 2
-        ),
+        t=t,
+        phase=np.clip(np.searchsorted(node_times, t, side="right") - 1, 0, len(node_times) - 2),
         cp=cp,
         z=z,
         alpha=np.full((n, 2), np.nan),
         accel=sddot,
-        q=f["q"],
-        qd=f["qd"],
+        q=q,
+        qd=qd,
         qdd=qdd,
-        tau=f["tau"],
+        tau=tau,
         residual=np.zeros(n),
         gamma=gamma.ravel(),
     )

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .. import flat
+from .. import flat, progress
 from ..dynamics import holding_torque
 from ..kinematics import joint_state, kinematic_functions
 from ..nodes import MIN_PHASE, node_names
@@ -20,6 +20,9 @@ from ..simulate import pose_states
 from ..solver import fatrop_options, ipopt_options
 from ..trajectory import sample
 from .joint_plan import REFINE, JointPlan, joint_functions
+
+RUN_LABEL = "direct collocation"
+"""The label of a collocation solve in progress lines (``iteration 12 (direct collocation)``)."""
 
 NODE_FIELDS = ("x", "y", "theta_deg", "xdot", "ydot", "thetadot_deg")
 """Node values collocation imposes (in the file's units; xi and eta have no meaning here)."""
@@ -211,7 +214,19 @@ def build(problem: Problem, intervals: int, gamma_constraint: bool, sign: int, g
             f"ipopt.{k}": v for k, v in ipopt_options(problem.spec.optimizer.solver, False).items()
         }
         ocp.solver("ipopt", {"expand": True, "print_time": False, "record_time": True, **options})
+        ocp.callback(report_iteration)
     return ocp, stages
+
+
+def report_iteration(iteration: int, _solution) -> None:
+    """rockit's callback after each Ipopt iteration: the count to :func:`cpopt.progress.iteration`.
+
+    Counted from 1 at Ipopt's iteration 0, as the flat optimizer's
+    :class:`~cpopt.solver.IterationReporter` counts. A Ctrl-C or the time limit raised here
+    stops Ipopt (CasADi turns it into a failed solve), and the budget raises it again outside
+    (:mod:`cpopt.budget`).
+    """
+    progress.iteration(int(iteration) + 1, RUN_LABEL)
 
 
 _CACHE: dict = {}

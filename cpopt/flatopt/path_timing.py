@@ -43,11 +43,11 @@ from ..paths import (
     order_fields,
     path_jet,
 )
+from .constraints import Constraints
 from .layout import Layout
 
 if TYPE_CHECKING:
     from ..problem import PathSpec, Problem
-    from .transcribe import Constraints
 
 TANGENT_MIN = 1e-3
 """Smallest length [m] of a path's end tangent Y'(0) or Y'(1) that free control points may take

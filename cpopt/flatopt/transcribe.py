@@ -43,6 +43,7 @@ from ..problem import Problem
 from ..solver import IterationReporter, ipopt_options
 from . import path_timing
 from .assemble import SampleBlock, assemble
+from .constraints import Constraints
 from .layout import Layout
 from .quadrature import Grid, PhaseSamples, piece_counts
 from .samples import NY, QD, REACH, TAU, Q, mapped_outputs
@@ -99,25 +100,6 @@ def phase_pieces(problem: Problem, k: int, packed: np.ndarray, t0: float, h: flo
     if o.curve == "path_timing":
         return path_timing.to_pieces(o.path[k], packed, t0, h)
     return SplineBasis(o.degree, coefficient_count(o)).to_pieces(np.asarray(packed), t0, h)
-
-
-@dataclass
-class Constraints:
-    """The NLP's constraints as they are assembled: expressions, bounds, and a label per row
-    (the constraint's name and where it sits: phase, normalised time)."""
-
-    exprs: list = field(default_factory=list)
-    lower: list = field(default_factory=list)
-    upper: list = field(default_factory=list)
-    rows: list = field(default_factory=list)
-
-    def add(self, expr, lo: float, hi, name: str, where: list) -> None:
-        """Append ``lo <= expr <= hi``; ``where`` labels each row, or all rows alike."""
-        self.exprs.append(expr)
-        k = int(expr.numel())
-        self.lower.extend([lo] * k)
-        self.upper.extend([hi] * k)
-        self.rows.extend((name, w) for w in (where if len(where) == k else where * k))
 
 
 @dataclass(frozen=True)

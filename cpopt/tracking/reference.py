@@ -30,6 +30,7 @@ from ..kinematics import inverse_derivatives, inverse_position, kinematic_functi
 from ..mapping import mapped
 from ..plan import GAMMA_ZERO, CPPlan, Node
 from ..robot import Arm
+from ..trajectory import flat_states
 
 GAUSS = np.polynomial.legendre.leggauss(3)
 """Gauss-Legendre nodes and weights on [-1, 1] for the period means of a flat plan's torque."""
@@ -122,13 +123,7 @@ def _flat_samples(plan: CPPlan, t: np.ndarray, phase: np.ndarray | None = None) 
     K, g0 = arm.K, arm.gravity
     t = np.clip(t, plan.t0, plan.nodes[-1].t)
     phase = _phase_at(plan, t) if phase is None else phase
-    P = np.zeros((t.size, 2, 5))
-    z = np.zeros((t.size, 8))
-    for i, ph in enumerate(plan.phases):
-        sel = phase == i
-        if sel.any():
-            P[sel] = ph.curve.derivatives(t[sel], 4)
-            z[sel] = flat.inverse(P[sel][:, :, :4], ph.sigma, K, g0)
+    P, z = flat_states(plan, t, phase)
     z[:, 2] = np.unwrap(z[:, 2])
     z[:, 2] += 2 * np.pi * np.round((plan.nodes[0].theta - z[0, 2]) / (2 * np.pi))
     _, zdot, _ = flat.compensate(z, P[:, :, 4], K, g0)

@@ -9,13 +9,15 @@ that diverged are stopped and dropped from the batch.
 
 from __future__ import annotations
 
-import shutil
+import hashlib
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from .. import compiled
 from ..kinematics import kinematic_functions
 from .controller import Controller
 from .outcome import cp_points
@@ -53,10 +55,6 @@ class Noise:
         return np.array([*self.position, *self.velocity], float)
 
 
-def _compiler_available() -> bool:
-    return shutil.which("gcc") is not None or shutil.which("cc") is not None
-
-
 @lru_cache(maxsize=8)
 def step_function(controller: Controller, jit: bool = False) -> ca.Function:
     """``(X, c, r, noise, p) -> (X_next, c_next, tau, qdd, cp, saturated)`` for one period.
@@ -65,8 +63,8 @@ def step_function(controller: Controller, jit: bool = False) -> ca.Function:
     instant, noise (6,) the measurement errors, p the plant's parameters; tau (2,) is the
     torque held over the period after saturation, qdd (3,) the plant's accelerations at the
     instant, cp (2,) its CP through the model's kinematics, saturated 1 when a torque was
-    clipped. With ``jit`` the function is compiled to C (gcc, under a second) when a compiler
-    is found.
+    clipped. With ``jit`` the function is compiled to C once and cached on disk
+    (:func:`compiled_step`); without a compiler it runs interpreted.
     """
     ref = controller.reference
     model = ref.arm
@@ -85,13 +83,31 @@ def step_function(controller: Controller, jit: bool = False) -> ca.Function:
     saturated = ca.sum1(ca.fabs(tau_cmd - tau)) > 0
     ins, outs = [X, c, r, noise, p], [X_next, c_next, tau, qdd, cp, saturated]
     names = (["X", "c", "r", "noise", "p"], ["X_next", "c_next", "tau", "qdd", "cp", "saturated"])
-    if jit and _compiler_available():
-        opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O1"]}}
-        try:
-            return ca.Function("step", ins, outs, *names, opts)
-        except RuntimeError:  # no working compiler after all: interpret
-            pass
-    return ca.Function("step", ins, outs, *names)
+    step = ca.Function("step", ins, outs, *names)
+    return compiled_step(step) if jit else step
+
+
+SOURCES = (Path(compiled.__file__),)
+"""The files besides the function itself that determine a compiled step's code."""
+
+
+def compiled_step(step: ca.Function) -> ca.Function:
+    """A period function compiled to C through :func:`cpopt.compiled.load_library`'s cache.
+
+    The step holds the plan's model, controller gains and period as constants, so a library is
+    one step: it is named by a hash of the function's serialization, which is computed without
+    generating code. The first process that tracks a plan compiles it (about a second); every
+    later one loads the cached library. The arithmetic is the function's, compiled with
+    :data:`cpopt.compiled.FLAGS`.
+    """
+    library = compiled.load_library(library_name(step), SOURCES, lambda: [step])
+    return library.functions[step.name()]
+
+
+def library_name(step: ca.Function) -> str:
+    """The cache name of a compiled period function: ``tracking-step-<hash>``, the hash of the
+    function's serialization (its whole expression graph, constants included)."""
+    return "tracking-step-" + hashlib.sha256(step.serialize().encode()).hexdigest()[:20]
 
 
 @lru_cache(maxsize=64)
@@ -195,7 +211,8 @@ def simulate_batch(
     noise : Noise, optional
         Measurement noise (none by default); run i draws from ``default_rng([seed, i])``.
     jit : bool
-        Compile the period function to C (worth it for batches of hundreds of runs).
+        Compile the period function to C, cached on disk (worth it for batches of hundreds of
+        runs, and for a plan tracked again in a later process).
     log : bool
         Keep every period of a single run (N = 1) in ``Batch.log``.
     """

@@ -1,0 +1,153 @@
+"""The Python API: load a problem, solve it, track its plan (re-exported by :mod:`cpopt`).
+
+``cpopt.load`` → :class:`~cpopt.problem.Problem`, ``cpopt.solve`` →
+:class:`~cpopt.solution.Solution`, ``cpopt.track`` → a tracking outcome; the same stages the
+command line runs (:func:`cpopt.pipeline.solve`), without files unless asked
+(:meth:`Solution.save <cpopt.solution.Solution.save>`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from . import pipeline
+from .problem import Problem, ProblemError, read_problem
+from .progress import Progress, reporting
+from .solution import Solution
+from .tracking import TrackingOutcome, TrackingRefused, track_problem
+
+
+def load(path_or_dict: str | Path | dict, **overrides) -> Problem:
+    """A problem from a YAML file or problem data, with values changed by key path.
+
+    Parameters
+    ----------
+    path_or_dict : str, Path or dict
+        A problem file (``problems/paper_swing_up.yaml``), or its content as a dict (left
+        unchanged).
+    **overrides
+        Values by key path, the syntax error messages use, set before validation:
+        ``cpopt.load("problems/swing_up_min_torque.yaml", **{"motion.duration": 2.0})``;
+        plain names as keywords (``planner="optimize"``). Units are the file's (degrees in
+        ``theta_deg``). :meth:`Problem.replace <cpopt.problem.Problem.replace>` does the same
+        on a loaded problem.
+
+    Returns
+    -------
+    Problem
+
+    Raises
+    ------
+    ProblemError
+        For an unreadable file, a key path that cannot be set, or content the file format
+        refuses: the message names the file and the key path (``err.source``, ``err.path``).
+    """
+    return read_problem(path_or_dict, overrides)
+
+
+def solve(
+    problem_or_path: Problem | str | Path | dict,
+    *,
+    planner: str | None = None,
+    time_limit: float | None = None,
+    progress: bool = False,
+) -> Solution:
+    """Plan, sample, verify (and track, with a ``tracking`` block) as ``cpopt solve`` does.
+
+    Parameters
+    ----------
+    problem_or_path : Problem, str, Path or dict
+        A loaded problem, or what :func:`load` takes.
+    planner : str, optional
+        ``closed_form``, ``optimize`` or ``collocation`` instead of the problem's ``planner``
+        (validated again: an optimizer setting that needs ``optimize`` is checked then).
+    time_limit : float, optional
+        Wall-clock limit of planning and verification together [s] instead of the problem's
+        ``optimizer.solver.max_time``. It is enforced in this process, between and inside the
+        solver's iterations (the command line also kills a process that overruns it inside a
+        native call that does not check the clock).
+    progress : bool
+        Write the stages and Ipopt iteration counts to stderr (``cpopt: <name>: <stage> [s]``).
+
+    Returns
+    -------
+    Solution
+        Its ``status`` says whether it worked (``solved``); a failure is a status, never an
+        exception. At the time limit the status is ``time_limit`` with what was done by then.
+
+    Raises
+    ------
+    ProblemError
+        For a problem that does not load or a planner the problem cannot use.
+    KeyboardInterrupt
+        On Ctrl-C.
+    """
+    problem = _problem(problem_or_path)
+    if planner is not None and planner != problem.planner:
+        problem = problem.replace(planner=planner)
+    if time_limit is not None:
+        if not time_limit > 0:
+            raise ProblemError(problem.source, "time_limit", f"must be > 0 s, got {time_limit}")
+        problem = problem.with_time_limit(time_limit)
+    # shown on stderr when asked, terminal or not (a notebook's stderr is not a terminal)
+    with reporting(Progress(quiet=not progress, verbose=progress), problem.name):
+        record = pipeline.solve(problem)
+    return Solution.of(record, problem)
+
+
+def _problem(problem_or_path) -> Problem:
+    if isinstance(problem_or_path, Problem):
+        return problem_or_path
+    return read_problem(problem_or_path)
+
+
+def track(
+    solution: Solution,
+    *,
+    plant: dict | None = None,
+    controller: str = "tvlqr",
+    **tracking,
+) -> TrackingOutcome | TrackingRefused:
+    """Track a solved plan on a realistic plant, as a problem's ``tracking`` block does.
+
+    Parameters
+    ----------
+    solution : Solution
+        A solution of :func:`solve` with a plan (it knows its problem).
+    plant : dict, optional
+        The ``tracking.plant`` block: ``links`` (per link ``length``, ``mass``, ``com``,
+        ``inertia`` overriding the arm's), ``friction`` {``viscous``, ``coulomb``},
+        ``torque_limit`` [N m or N] (default: the problem's ``optimizer.limits.torque``).
+        Default: the model arm.
+    controller : str
+        ``tvlqr`` or ``dfl``.
+    **tracking
+        The block's other keys: ``rate_hz``, ``Q``, ``R``, ``Qf``, ``poles``, ``noise``
+        (see docs/problems.md).
+
+    Returns
+    -------
+    TrackingOutcome or TrackingRefused
+        The tracked motion and its errors (``.summary()`` is ``solution.json``'s ``tracking``
+        entry), or why the controller cannot follow the plan.
+
+    Raises
+    ------
+    ProblemError
+        For settings the ``tracking`` block refuses, naming the key path
+        (``tracking.plant.links[2].mass``).
+    ValueError
+        For a solution without a plan or without its problem.
+    """
+    if solution.plan is None:
+        raise ValueError(f"{solution.name}: no plan to track (status {solution.status})")
+    if getattr(solution, "problem", None) is None:
+        raise ValueError(f"{solution.name}: a solution of cpopt.solve is needed (its problem)")
+    block = {"controller": controller, **tracking}
+    if plant is not None:
+        block["plant"] = plant
+    problem = solution.problem.replace(tracking=block)
+    return track_problem(problem, solution.plan)
+
+
+__all__ = ["load", "solve", "track"]
