@@ -54,11 +54,16 @@ def extrapolated_step(rhs: ca.Function) -> ca.Function:
     casadi.Function
         ``v -> [x1; err]`` with ``v = [x; lam0; dlam; h; vec(c); extra...]``: the state after
         the step from ``lam0`` to ``lam0 + dlam`` (``dlam * h`` seconds) and its error
-        estimate. An SX right-hand side gives an SX function (several times faster to
-        evaluate than MX call nodes).
+        estimate. An SX right-hand side gives an SX function (twice as fast to evaluate as
+        MX call nodes).
     """
     sx = rhs.is_a("SXFunction")
     kind = ca.SX if sx else ca.MX
+    if sx:  # common subexpressions out of the right-hand side once, then inlined 20 times:
+        # measured on the closed loop, 31 ms to build and 141 us a step, against 204 ms and
+        # 118 us with CSE over the whole step, and 14 ms and 282 us as MX call nodes
+        inputs = rhs.sx_in()
+        rhs = ca.Function(rhs.name(), inputs, rhs.call(inputs), {"cse": True})
     shapes = [rhs.size_in(i) for i in range(rhs.n_in())]
     v = kind.sym("v", sum(r * c for r, c in shapes) + 1)
     x, lam0, dlam, h, *rest = _split(v, [shapes[0], (1, 1), (1, 1), *shapes[2:]])
@@ -79,8 +84,7 @@ def extrapolated_step(rhs: ca.Function) -> ca.Function:
             ratio = (SEQUENCE[j] / SEQUENCE[j - k]) ** 2
             table[j].append(table[j][k - 1] + (table[j][k - 1] - table[j - 1][k - 1]) / (ratio - 1))
     x1 = table[-1][-1]
-    options = {"cse": True} if sx else {}
-    return ca.Function(f"{rhs.name()}_step", [v], [ca.vertcat(x1, x1 - table[-1][-2])], options)
+    return ca.Function(f"{rhs.name()}_step", [v], [ca.vertcat(x1, x1 - table[-1][-2])])
 
 
 def _split(v, shapes) -> list:
@@ -179,7 +183,9 @@ def integrate_along(
     t_eval = np.linspace(curve.t0, curve.t1, samples)
     stepper = CurveStepper(rhs, curve, *extra)
     inner = stepper.breaks[1:-1]
-    grid = np.union1d(t_eval, inner[(inner > curve.t0) & (inner < curve.t1)])
+    # sorted and without repeats (np.union1d would import numpy.ma: 60 ms of a fresh process)
+    grid = np.sort(np.concatenate([t_eval, inner[(inner > curve.t0) & (inner < curve.t1)]]))
+    grid = grid[np.r_[True, np.diff(grid) > 0]]
     budget = int(BASE_STEPS + steps_per_second * (curve.t1 - curve.t0))
     out = np.empty((samples, len(x0)))
     out[0] = x = np.asarray(x0, float)
