@@ -169,6 +169,9 @@ def _write(solution, problem, outdir: Path, args) -> None:
     with locked(outdir):
         clear(outdir)  # no figure of an earlier run stays beside this one's status
         if solution.ok and (args.plot or args.animate):
+            import matplotlib  # here, not at start-up: 0.2-0.4 s before the first progress line
+
+            matplotlib.use("Agg")  # files, never a window
             from .plotting import animate, write_figures
 
             if args.plot:
@@ -181,9 +184,6 @@ def _write(solution, problem, outdir: Path, args) -> None:
 
 
 def _cmd_solve(args) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
     from . import progress
     from .isolate import solve_isolated
 
