@@ -61,3 +61,23 @@ def test_bspline_pieces_match_the_basis_and_end_conditions_are_local():
     t = np.linspace(0, 1.3, 50)
     back = basis.to_pieces(fit(basis, curve), 0.0, 1.3)
     np.testing.assert_allclose(back.derivatives(t, 3), curve.derivatives(t, 3), atol=1e-8)
+
+
+@pytest.mark.parametrize("degree", [1, 3, 5, 8, 11])
+def test_basis_matrices_equal_scipys_bspline(degree):
+    """cpopt's own Cox-de Boor evaluation (no scipy.interpolate import at start-up) gives
+    SciPy's BSpline values and derivatives, ends and a little outside [0, 1] included."""
+    from scipy.interpolate import BSpline
+
+    from cpopt.bspline import SplineBasis
+
+    s = np.r_[0.0, 1.0, np.linspace(0.0, 1.0, 23), np.random.default_rng(degree).random(9), -1e-3]
+    for count in (degree + 1, degree + 4, degree + 17):
+        basis = SplineBasis(degree, count)
+        for order in range(degree + 1):
+            reference = BSpline(basis.knots, np.eye(count), degree)
+            reference = reference.derivative(order) if order else reference
+            expected = reference(s)
+            scale = max(1.0, np.abs(expected).max())
+            np.testing.assert_allclose(basis.matrix(s, order), expected, rtol=0, atol=1e-13 * scale)
+        assert not basis.matrix(s, degree + 1).any()

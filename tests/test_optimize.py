@@ -342,12 +342,15 @@ def test_swing_up_holding_steps_once_at_its_switch(optimized):
 def test_the_greedy_search_lowers_the_transfer_cost():
     """switch_search: greedy (issue 11's search) with gamma_switches: auto on the T = 1 s
     transfer: every pattern tried is reported, and the one kept costs at least 1 % less than
-    the best plan with one sign of gamma (measured 62753; the seeded search finds 42521)."""
+    the best plan with one sign of gamma. Where it places the switch depends on which active
+    margin constraint weighs most on the one-sign plan, a near tie: the B-spline basis from
+    scipy.interpolate gave 62753 (switch at 0.616 s), cpopt's own (equal to 1.5e-15) 70242
+    (-/+ tried at 0.948 s, failed; +/- at 0.339 s kept). The seeded search finds 42521."""
     problem = load_problem(PROBLEMS / "transfer_switch.yaml")
     data = problem.spec.model_dump()
     data["optimizer"]["switch_search"] = "greedy"
     sol = solve(parse_problem(data, problem.source, problem.name))
-    assert sol.solver.objective == pytest.approx(62753.35, rel=2e-3)
+    assert sol.solver.objective < 0.85 * 82694.28  # the one-sign plan (transfer_min_torque)
     d = sol.solver.details
     choices = d.sign_choices
     # a one-sign run that a solved one dominates is abandoned early (status dominated)

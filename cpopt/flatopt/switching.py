@@ -423,10 +423,11 @@ def pattern_of(attempt) -> Pattern:
 
 def preference(attempt) -> tuple:
     """Sort key of attempts, the best plan largest: solved first; then an iterate with numbers
-    (Ipopt's ``Invalid_Number_Detected`` leaves an objective of 0 that must not win); then
-    the fewest violated constraints; then the lowest objective."""
+    (Ipopt's ``Invalid_Number_Detected`` leaves an objective of 0 that must not win); then,
+    among unsolved ones, the fewest violated constraints; then the lowest objective."""
     sane = attempt.ipopt_status != "Invalid_Number_Detected" and math.isfinite(attempt.objective)
-    return (attempt.status == "solved", sane, -len(attempt.violations), -attempt.objective)
+    solved = attempt.status == "solved"  # a solved plan's residual violations do not count
+    return (solved, sane, 0 if solved else -len(attempt.violations), -attempt.objective)
 
 
 def _best(attempts):
