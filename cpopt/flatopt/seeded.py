@@ -11,7 +11,8 @@ seed``, the default; route (b) of issue 11).
    free times; 361 and solved, 1.0014 times collocation's cost, with held ones).
 3. **Polish**: the patterns one switch away (:func:`cpopt.flatopt.switching.neighbours`),
    each started from the plan solved so far and given at most
-   :data:`~cpopt.flatopt.switching.POLISH_LIMIT` iterations, while the polish has spent less
+   :data:`~cpopt.flatopt.switching.POLISH_LIMIT` iterations and abandoned once clearly
+   dominated (:func:`~cpopt.flatopt.switching.dominated`), while the polish has spent less
    than the flat solve did; the cheapest solved plan is kept. A plan that already costs no
    more than :data:`POLISH_GAIN` above the seed (the unconstrained optimum on a coarse grid)
    is not polished: no pattern can gain more than that (the benchmark transfer: 40427 against
@@ -37,6 +38,7 @@ from .switching import (
     Pattern,
     Search,
     Solve,
+    dominated,
     neighbours,
     pattern_of,
     preference,
@@ -82,11 +84,14 @@ def worth_polishing(problem: Problem, best, seed: Seed) -> bool:
     return best.objective > (1 + POLISH_GAIN) * seed.report.objective
 
 
-def solve_pattern(solve: Solve, problem: Problem, pattern: Pattern, start, limit=None):
+def solve_pattern(
+    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None
+):
     """Solve one pattern with its switch times held, started from the trajectory ``start``
-    (from the closed form through the nodes when it is None)."""
+    (from the closed form through the nodes when it is None); ``limit`` and ``abandon`` as in
+    :func:`cpopt.flatopt.solve_for_signs`."""
     augmented, switches = with_switches(problem, pattern.times, free_times=False)
-    return solve(augmented, pattern.signs, switches, seed=start, limit=limit)
+    return solve(augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon)
 
 
 def _better(a, b) -> bool:
@@ -105,7 +110,10 @@ def polish(solve: Solve, problem: Problem, best, budget: float, figures: Stage):
             break
         progress.stage(f"switch search: polish, {len(pattern.times)} switch(es)")
         tic = time.perf_counter()
-        attempt = solve_pattern(solve, problem, pattern, start, POLISH_LIMIT)
+        # a neighbour still at twice the plan's cost after 30 iterations will not win (the
+        # swing-up with two switches: both neighbours ran to the limit, 6.9 s, at 1e5-1e6)
+        abandon = dominated(best.objective)
+        attempt = solve_pattern(solve, problem, pattern, start, POLISH_LIMIT, abandon)
         figures.add(attempt, tic)
         attempts.append(attempt)
         if attempt.status == "solved" and _better(attempt, best):
