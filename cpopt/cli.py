@@ -17,6 +17,9 @@ import threading
 from pathlib import Path
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+SWEEP_GRACE = 15.0
+"""Seconds ``cpopt sweep`` gets after Ctrl-C to cancel its tasks and close its cluster before
+the process is ended (other commands get :data:`cpopt.budget.GRACE`)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -304,10 +307,12 @@ def _caused_by_interrupt(err: BaseException) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``cpopt`` command; returns the exit code."""
-    from .budget import hard_stop_on_interrupt
+    from .budget import GRACE, hard_stop_on_interrupt
 
+    words = sys.argv[1:] if argv is None else argv
+    grace = SWEEP_GRACE if words[:1] == ["sweep"] else GRACE
     try:
-        with hard_stop_on_interrupt(_interrupted, code=EXIT_INTERRUPTED):
+        with hard_stop_on_interrupt(_interrupted, grace=grace, code=EXIT_INTERRUPTED):
             args = _parser().parse_args(argv)
             if args.command == "check":
                 return _cmd_check(args.files)

@@ -84,7 +84,7 @@ def solve_point(data: dict, source: str) -> Outcome:
             from ..pipeline import solve
 
             solution = solve(problem)
-    except Exception as err:
+    except (Exception, KeyboardInterrupt) as err:  # Ctrl-C reached the solver's child process
         return Outcome(None, time.perf_counter() - start, worker, f"{type(err).__name__}: {err}")
     return Outcome(solution, time.perf_counter() - start, worker)
 
