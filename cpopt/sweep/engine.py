@@ -77,6 +77,9 @@ def connect(workers: int | None = None, scheduler: str | None = None):
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
+            # the scheduler's health and metrics server still listens: not on 8787, which
+            # another cluster may hold (a warning), but on a free port of this machine only
+            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
             silence_logs=logging.ERROR,
             env=env,
         )

@@ -164,7 +164,7 @@ def parse_vary(text: str) -> Vary:
         values = parse_spec(spec)
     except SweepError as err:
         raise SweepError(f"--vary {key}={err}") from None
-    if len(set(map(repr, values))) != len(values):
+    if len(set(values)) != len(values):  # 1 and 1.0 are one value
         raise SweepError(f"--vary {key}={spec}: a value is given twice")
     return Vary(key, values)
 
