@@ -3,11 +3,14 @@ LocalCluster of two workers (started once for the module, used through ``--sched
 
 import json
 import math
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 import yaml
-from conftest import PROBLEMS
+from conftest import PROBLEMS, ROOT
 
 from cpopt.cli import main
 from cpopt.keypath import with_values
@@ -318,3 +321,32 @@ def test_default_local_cluster_and_plot(tmp_path, capsys):
     rows = read_table(out / TABLE)
     assert [r["status"] for r in rows] == ["solved", "solved"]
     assert all(math.isfinite(float(r["max_cp_error"])) for r in rows)
+
+
+def _table(stdout: str) -> list[str]:
+    """The benchmark's table rows and ROBUST lines, without the wall times."""
+    lines = stdout.split("\nplan ")[-1].splitlines()[1:]
+    return [re.sub(r"\s+[0-9.]+$", "", line) for line in lines if line and "s in all" not in line]
+
+
+@pytest.mark.slow
+def test_robustness_benchmark_on_two_workers_gives_the_serial_figures():
+    script = [sys.executable, str(ROOT / "benchmarks" / "robustness.py"), "--quick"]
+    serial, dask = (
+        subprocess.run(command, capture_output=True, text=True, timeout=300)
+        for command in (script, [*script, "--workers", "2"])
+    )
+    assert serial.returncode == dask.returncode == 0, dask.stderr[-2000:]
+    assert _table(dask.stdout) == _table(serial.stdout)
+    assert sum(line.startswith("ROBUST paper_transfer ") for line in _table(dask.stdout)) == 2
+
+
+def test_dask_is_imported_only_by_the_sweep():
+    code = (
+        "import sys\n"
+        "from cpopt.cli import main\n"
+        "main(['check', sys.argv[1]])\n"
+        "print(sorted(m for m in ('dask', 'distributed') if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, TRANSFER], capture_output=True, text=True)
+    assert done.stdout.splitlines()[-1] == "[]", done.stderr
