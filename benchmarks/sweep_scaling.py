@@ -2,10 +2,10 @@
 
 The sweep is the optimized swing-up's cost against its duration (``swing_up_min_torque`` over
 ``motion.duration``, 16 points from 1.25 s to 2.0 s by default: beyond about 2.1 s the solves
-take thousands of iterations, and one such point would make the run a measure of itself). Each run is a ``cpopt sweep``
-process of its own (a fresh local cluster: its start-up is in the time), the compile cache
-warmed first. Then every point of the two-worker run is solved alone in this process and its
-cost compared. It prints::
+take thousands of iterations, and one such point would make the run a measure of itself).
+Each run is a ``cpopt sweep`` process of its own (a fresh local cluster: its start-up is in
+the time), the compile cache warmed first. Then every point of the two-worker run is solved
+alone in this process and its cost compared. It prints::
 
     SWEEP workers=1 wall=<s> workers=2 wall=<s> ratio=<wall 2 / wall 1>
     SWEEP_CHECK points=<n> solved=<n> max_rel_diff=<largest relative cost difference>

@@ -242,6 +242,7 @@ def test_a_row_equals_solving_that_point_alone(tmp_path, scheduler):
             alone.metrics.torque_sq_integral, rel=1e-9
         )
         assert int(row["iterations"]) == alone.solver.iterations
+        assert float(row["duration_s"]) == alone.plan.duration  # numbers as Python writes them
 
 
 def test_a_failed_point_is_a_row_not_the_end_of_the_sweep(tmp_path, scheduler, capsys):

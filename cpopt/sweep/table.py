@@ -18,7 +18,7 @@ from pathlib import Path
 import yaml
 
 from ..output import OUTPUT_FILES, atomic_write, clear, locked, make_directory
-from ..results import STATUSES, write_solution
+from ..results import STATUSES, json_safe, write_solution
 from .spec import Point
 from .task import Outcome
 
@@ -79,7 +79,7 @@ def _row(point: Point, document: dict | None, outcome: Outcome, status: str, mes
         problem_sha256=point.digest,
         message=" ".join(message.split()),
     )
-    return row
+    return json_safe(row)  # numbers as Python's (the CSV and JSON write them the same)
 
 
 def row_of(point: Point, outcome: Outcome | None, lost: str = "") -> dict:
@@ -88,7 +88,7 @@ def row_of(point: Point, outcome: Outcome | None, lost: str = "") -> dict:
         return _row(point, None, Outcome(None, 0.0, ""), WORKER_LOST, lost)
     if outcome.solution is None:
         return _row(point, None, outcome, ERROR, outcome.error)
-    doc = outcome.solution.as_dict()
+    doc = json_safe(outcome.solution.as_dict())
     message = doc["solver"].get("message", "") if outcome.solution.status != "solved" else ""
     return _row(point, doc, outcome, outcome.solution.status, message)
 
