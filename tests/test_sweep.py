@@ -3,9 +3,13 @@ LocalCluster of two workers (started once for the module, used through ``--sched
 
 import json
 import math
+import os
 import re
+import signal
 import subprocess
 import sys
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -322,6 +326,32 @@ def test_default_local_cluster_and_plot(tmp_path, capsys):
     rows = read_table(out / TABLE)
     assert [r["status"] for r in rows] == ["solved", "solved"]
     assert all(math.isfinite(float(r["max_cp_error"])) for r in rows)
+
+
+def test_a_lost_workers_point_is_run_again(scheduler):
+    """A worker killed while it holds the point: the scheduler runs the task on another."""
+    from dask.distributed import Client
+
+    from cpopt.sweep import engine
+
+    points = build_points(ONE_PHASE, [parse_vary("motion.duration=1.55")])
+    results = []
+    with Client(scheduler) as client:
+        pids = client.run(os.getpid)
+        worker = threading.Thread(
+            target=engine.run,
+            args=(client, points, ONE_PHASE, lambda *result: results.append(result)),
+        )
+        worker.start()
+        deadline = time.monotonic() + 30
+        while not any(client.processing().values()) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        victim = next(w for w, keys in client.processing().items() if keys)
+        os.kill(pids[victim], signal.SIGKILL)
+        worker.join(timeout=180)
+    ((point, outcome, lost),) = results
+    assert point == points[0] and lost == "" and outcome.solution.status == "solved"
+    assert outcome.worker.split(":")[1] != str(pids[victim])
 
 
 def _table(stdout: str) -> list[str]:
