@@ -13,7 +13,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..output import OutputError, check_directory, check_problem_directory, make_directory
+from ..output import OutputError, check_problem_directory, make_directory
 from .bar import SweepBar
 from .spec import Point, SweepError, build_points, parse_vary
 from .table import TABLE, completed, read_table, write_point, write_table
@@ -41,7 +41,6 @@ def _check_outputs(out: Path, points: list[Point]) -> None:
                 raise OutputError(f"{out / name}: is a directory")
         for point in points:
             check_problem_directory(out / point.name)
-            check_directory(out / point.name)
     except OutputError as err:
         raise SweepError(f"--out {err}") from None
 
