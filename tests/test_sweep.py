@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -352,6 +353,50 @@ def test_a_lost_workers_point_is_run_again(scheduler):
     ((point, outcome, lost),) = results
     assert point == points[0] and lost == "" and outcome.solution.status == "solved"
     assert outcome.worker.split(":")[1] != str(pids[victim])
+
+
+def _group(pgid: int) -> list[str]:
+    """The live processes (not zombies waiting to be reaped) of a process group (Linux)."""
+    live = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z":
+            live.append(stat.parent.name)
+    return live
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_ctrl_c_keeps_finished_points_and_resume_solves_only_the_rest(tmp_path):
+    """A terminal's Ctrl-C signals the whole process group (the command, its workers, their
+    solver children): exit 130 with one line, the cluster gone, finished points on disk; the
+    same sweep with --resume then solves only the points that had not finished."""
+    command = [sys.executable, "-m", "cpopt", "sweep", ONE_PHASE, "--workers", "2"]
+    command += ["--vary", "motion.duration=1.4:1.7:4", "--out", str(tmp_path / "out")]
+    run = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    for line in run.stderr:  # not a terminal: one progress line per finished point
+        if " 1/4 done" in line:
+            break
+    os.killpg(run.pid, signal.SIGINT)
+    _, err = run.communicate(timeout=60)
+    assert run.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "cpopt: interrupted" and "Traceback" not in err
+    deadline = time.monotonic() + 10  # no worker or solver process left in the group
+    while _group(run.pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert _group(run.pid) == []
+    kept = [row["point"] for row in read_table(tmp_path / "out" / TABLE)]
+    assert 1 <= len(kept) < 4
+    again = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    solved_now = [line.split(":")[0] for line in again.stdout.splitlines()[:-1]]
+    assert len(solved_now) == 4 - len(kept) and not set(solved_now) & set(kept)
+    assert f"({len(kept)} taken from earlier results): 4 solved" in again.stdout
 
 
 def _table(stdout: str) -> list[str]:
