@@ -40,7 +40,9 @@ class SweepBar:
 
     WIDTH = 24
 
-    def __init__(self, total, skipped=0, slots=1, stream=None, quiet=False) -> None:
+    def __init__(
+        self, total: int, skipped: int = 0, slots: int = 1, stream=None, quiet: bool = False
+    ) -> None:
         self.stream = sys.stderr if stream is None else stream
         self.terminal = getattr(self.stream, "isatty", lambda: False)()
         self.quiet = quiet

@@ -98,7 +98,7 @@ def slots(client) -> int:
     return max(sum(client.nthreads().values()), 1)
 
 
-def run(client, points: list[Point], source: str, done: Callable) -> None:
+def run(client, points: list[Point], source: str, done: Callable[..., None]) -> None:
     """Submit one task per point and call ``done(point, outcome, lost)`` as each completes
     (in the order they complete). ``outcome`` is None when the task never returned (``lost``
     says why). On any exception (Ctrl-C included) the tasks left are cancelled.

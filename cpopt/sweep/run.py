@@ -9,6 +9,7 @@ point's folder, then ``sweep.csv`` whole); ``sweep.png`` last, with ``--plot``.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,7 +68,7 @@ def _time_optimal(point: Point) -> bool:
     return "duration" in parse_problem(point.data).free
 
 
-def sweep(args) -> SweepResult:
+def sweep(args: argparse.Namespace) -> SweepResult:
     """Run ``cpopt sweep`` with parsed arguments (``base``, ``vary``, ``out``, ``workers``,
     ``scheduler``, ``time_limit``, ``resume``, ``plot``, ``quiet``).
 
@@ -129,7 +130,7 @@ def summary(result: SweepResult) -> str:
     )
 
 
-def main(args) -> int:
+def main(args: argparse.Namespace) -> int:
     """The command: 0 every point solved, 1 a point failed, 2 bad input (130 is the caller's,
     on Ctrl-C)."""
     try:
