@@ -6,6 +6,8 @@
   ``--resume`` may skip;
 * :mod:`cpopt.sweep.engine`: the Dask cluster (a ``LocalCluster`` or a running scheduler),
   the tasks and the results as they complete;
+* :mod:`cpopt.sweep.task`: what a worker runs; :mod:`cpopt.sweep.quiet_workers`: the local
+  workers ignore Ctrl-C;
 * :mod:`cpopt.sweep.bar`: the progress bar; :mod:`cpopt.sweep.plot`: ``sweep.png``;
 * :mod:`cpopt.sweep.run`: the command itself.
 

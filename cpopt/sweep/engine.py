@@ -86,6 +86,9 @@ def connect(workers: int | None = None, scheduler: str | None = None):
     try:
         client = Client(cluster)
         try:
+            from .quiet_workers import IgnoreCtrlC
+
+            client.register_plugin(IgnoreCtrlC())
             yield client
         finally:
             client.close()
