@@ -23,7 +23,8 @@ With ``--workers N`` (a local Dask cluster of N single-threaded worker processes
 ``--scheduler ADDRESS`` (a running Dask cluster) the work runs as tasks, as ``cpopt sweep``
 runs its points: one task solves each plan, then one task per plan and controller runs its
 perfect-model run, its sweeps, its Monte Carlo plants and its mass margins. Every task gets
-plain data (the problem file's content, the plan) and gives the same figures as the serial run:
+plain data (the problem file's content, the plan) and gives the same figures as the serial run
+(which, like the workers, runs with one BLAS and OpenMP thread):
 the Monte Carlo plants of a plan and controller are drawn and simulated as one batch, exactly
 as serially (plant i's parameters are row i of one seeded draw, its measurement noise is drawn
 from ``default_rng([seed, i])``), so no figure depends on which worker ran what or when.
@@ -39,9 +40,17 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import dataclass
+
+from cpopt.sweep.task import THREAD_VARIABLES
+
+# One BLAS and OpenMP thread here as in the Dask workers (set before NumPy loads its BLAS): with
+# more threads the sums run in another order, and a diverging run's last digits, then its
+# errors (the Monte Carlo CP median of a failing controller), differ from the workers'.
+os.environ.update(dict.fromkeys(THREAD_VARIABLES, "1"))
 
 import numpy as np
 
