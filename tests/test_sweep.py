@@ -66,6 +66,7 @@ def test_random_spec_is_reproducible_and_in_range():
         ("1:2", "a:b:n"),
         ("1:2:0", "n must be a whole number >= 1"),
         ("1:2:2.5", "n must be a whole number >= 1"),
+        ("1:2:1000000000000", "n must be at most 100000"),
         ("1:x:3", "b must be a finite number"),
         ("nan:1:3", "a must be a finite number"),
         ("random:1:2:3", "random:a:b:n:seed"),

@@ -86,6 +86,8 @@ def _count(text: str, spec: str) -> int:
     count = _number(text, "n", spec)
     if not isinstance(count, int) or count < 1:
         raise SweepError(f"{spec}: n must be a whole number >= 1, got {echo(text)}")
+    if count > MAX_POINTS:  # before any list of values is made
+        raise SweepError(f"{spec}: n must be at most {MAX_POINTS}, got {count}")
     return count
 
 
