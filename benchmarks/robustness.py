@@ -22,7 +22,8 @@ exactly ``ROBUST <plan> <controller> sweep=<fraction> monte_carlo=<fraction>``.
 With ``--workers N`` (a local Dask cluster of N single-threaded worker processes) or
 ``--scheduler ADDRESS`` (a running Dask cluster) the work runs as tasks, as ``cpopt sweep``
 runs its points: one task solves each plan, then one task per plan and controller runs its
-perfect-model run, its sweeps, its Monte Carlo plants and its mass margins. Every task gets
+perfect-model run, its sweeps, its Monte Carlo plants and its mass margins (the solves run in
+the worker processes themselves, like the serial run's in its process). Every task gets
 plain data (the problem file's content, the plan) and gives the same figures as the serial run
 (which, like the workers, runs with one BLAS and OpenMP thread):
 the Monte Carlo plants of a plan and controller are drawn and simulated as one batch, exactly
@@ -167,6 +168,16 @@ def run_serial(problems, args, start: float) -> list[Row]:
     return rows
 
 
+def solve_task(data: dict, source: str) -> tuple[str, object]:
+    """The plan's solve in a worker, as in :func:`run_serial` (in the worker's own process, so
+    that its warm caches serve the next plan): its status and its plan (or None)."""
+    from cpopt.pipeline import solve
+    from cpopt.problem import parse_problem
+
+    solution = solve(parse_problem(data, source))
+    return solution.status, solution.plan if solution.ok else None
+
+
 def measure_task(data: dict, source: str, plan, name: str, args) -> Row:
     """:func:`measure` in a worker, from the problem's data and the plan."""
     from cpopt.problem import parse_problem
@@ -181,7 +192,6 @@ def run_distributed(problems, args, start: float) -> list[Row]:
 
     from cpopt.safe_yaml import read_yaml
     from cpopt.sweep.engine import connect
-    from cpopt.sweep.task import solve_point
 
     data = {p.name: read_yaml(p.source) for p in problems}
     order = {
@@ -191,7 +201,7 @@ def run_distributed(problems, args, start: float) -> list[Row]:
     with connect(args.workers, args.scheduler) as client:
         work, solving = as_completed(), {}
         for p in problems:
-            future = client.submit(solve_point, data[p.name], p.source, pure=False)
+            future = client.submit(solve_task, data[p.name], p.source, pure=False)
             solving[future.key] = p
             work.add(future)
         try:
@@ -201,16 +211,15 @@ def run_distributed(problems, args, start: float) -> list[Row]:
                     done[order[(result.plan, result.controller)]] = result
                     print(format_row(result), flush=True)
                     continue
-                problem, solution = solving.pop(future.key), result.solution
-                if solution is None or not solution.ok:
-                    why = result.error if solution is None else solution.status
-                    print(f"{problem.name}: not solved ({why}), skipped", flush=True)
+                problem, (status, plan) = solving.pop(future.key), result
+                if plan is None:
+                    print(f"{problem.name}: not solved ({status}), skipped", flush=True)
                 elif args.time_limit and time.perf_counter() - start > args.time_limit:
                     print(f"time limit reached: {problem.name} not measured", flush=True)
                 else:
                     for name in CONTROLLERS:
                         work.add(client.submit(measure_task, data[problem.name], problem.source,
-                                               solution.plan, name, args, pure=False))  # fmt: skip
+                                               plan, name, args, pure=False))  # fmt: skip
         except KeyboardInterrupt:
             print("interrupted: the results so far follow", flush=True)
     return [done[i] for i in sorted(done)]
