@@ -19,9 +19,21 @@ velocity within 0.25 rad/s (m/s) of the goal's, and it never diverged
 (:class:`cpopt.tracking.Tolerance`). It prints a table and one line per plan and controller,
 exactly ``ROBUST <plan> <controller> sweep=<fraction> monte_carlo=<fraction>``.
 
+With ``--workers N`` (a local Dask cluster of N single-threaded worker processes) or
+``--scheduler ADDRESS`` (a running Dask cluster) the work runs as tasks, as ``cpopt sweep``
+runs its points: one task solves each plan, then one task per plan and controller runs its
+perfect-model run, its sweeps, its Monte Carlo plants and its mass margins (the solves run in
+the worker processes themselves, like the serial run's in its process). Every task gets
+plain data (the problem file's content, the plan) and gives the same figures as the serial run
+(which, like the workers, runs with one BLAS and OpenMP thread):
+the Monte Carlo plants of a plan and controller are drawn and simulated as one batch, exactly
+as serially (plant i's parameters are row i of one seeded draw, its measurement noise is drawn
+from ``default_rng([seed, i])``), so no figure depends on which worker ran what or when.
+
 Usage::
 
     python benchmarks/robustness.py                       # every bundled plan (minutes)
+    python benchmarks/robustness.py --workers 2           # the same figures, on two workers
     python benchmarks/robustness.py --plans paper_transfer --trials 20
     python benchmarks/robustness.py --quick               # a small run (a test)
 """
@@ -29,9 +41,17 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import dataclass
+
+from cpopt.sweep.task import THREAD_VARIABLES
+
+# One BLAS and OpenMP thread here as in the Dask workers (set before NumPy loads its BLAS): with
+# more threads the sums run in another order, and a diverging run's last digits, then its
+# errors (the Monte Carlo CP median of a failing controller), differ from the workers'.
+os.environ.update(dict.fromkeys(THREAD_VARIABLES, "1"))
 
 import numpy as np
 
@@ -126,27 +146,13 @@ def _problems(selection: str | None):
     return [load_problem(files[n]) for n in names]
 
 
-def main(argv=None) -> int:
-    """Run the benchmark; returns the exit code."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--plans", help="bundled plans to run, NAME,... (default: all)")
-    parser.add_argument("--trials", type=int, default=100, help="Monte Carlo trials (100)")
-    parser.add_argument("--steps", type=int, default=21, help="steps of each sweep (21)")
-    parser.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (1000)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo plants")
-    parser.add_argument("--time-limit", type=float, help="start no new plan after this [s]")
-    parser.add_argument(
-        "--quick", action="store_true", help=f"{QUICK_PLANS}, 5 trials, 3-step sweeps, no mass"
-    )
-    args = parser.parse_args(argv)
-    if args.quick:
-        args.plans, args.trials, args.steps = args.plans or QUICK_PLANS, 5, 3
+def run_serial(problems, args, start: float) -> list[Row]:
+    """Each plan solved, then measured with each controller, in this process."""
     from cpopt.pipeline import solve
 
-    start = time.perf_counter()
     rows: list[Row] = []
     try:
-        for problem in _problems(args.plans):
+        for problem in problems:
             if args.time_limit and time.perf_counter() - start > args.time_limit:
                 print(f"time limit reached: {problem.name} and later plans not run", flush=True)
                 break
@@ -159,6 +165,91 @@ def main(argv=None) -> int:
                 print(format_row(rows[-1]), flush=True)
     except KeyboardInterrupt:
         print("interrupted: the results so far follow", flush=True)
+    return rows
+
+
+def solve_task(data: dict, source: str) -> tuple[str, object]:
+    """The plan's solve in a worker, as in :func:`run_serial` (in the worker's own process, so
+    that its warm caches serve the next plan): its status and its plan (or None)."""
+    from cpopt.pipeline import solve
+    from cpopt.problem import parse_problem
+
+    solution = solve(parse_problem(data, source))
+    return solution.status, solution.plan if solution.ok else None
+
+
+def measure_task(data: dict, source: str, plan, name: str, args) -> Row:
+    """:func:`measure` in a worker, from the problem's data and the plan."""
+    from cpopt.problem import parse_problem
+
+    return measure(parse_problem(data, source), plan, name, args)
+
+
+def run_distributed(problems, args, start: float) -> list[Row]:
+    """The same work as :func:`run_serial` as Dask tasks (see the module docstring); rows in
+    the serial order, printed as they complete."""
+    from dask.distributed import as_completed
+
+    from cpopt.safe_yaml import read_yaml
+    from cpopt.sweep.engine import connect
+
+    data = {p.name: read_yaml(p.source) for p in problems}
+    order = {
+        (p.name, c): i for i, (p, c) in enumerate((p, c) for p in problems for c in CONTROLLERS)
+    }
+    done: dict[int, Row] = {}
+    with connect(args.workers, args.scheduler) as client:
+        work, solving = as_completed(), {}
+        for p in problems:
+            future = client.submit(solve_task, data[p.name], p.source, pure=False)
+            solving[future.key] = p
+            work.add(future)
+        try:
+            for future in work:
+                result = future.result()
+                if isinstance(result, Row):
+                    done[order[(result.plan, result.controller)]] = result
+                    print(format_row(result), flush=True)
+                    continue
+                problem, (status, plan) = solving.pop(future.key), result
+                if plan is None:
+                    print(f"{problem.name}: not solved ({status}), skipped", flush=True)
+                elif args.time_limit and time.perf_counter() - start > args.time_limit:
+                    print(f"time limit reached: {problem.name} not measured", flush=True)
+                else:
+                    for name in CONTROLLERS:
+                        work.add(client.submit(measure_task, data[problem.name], problem.source,
+                                               plan, name, args, pure=False))  # fmt: skip
+        except KeyboardInterrupt:
+            print("interrupted: the results so far follow", flush=True)
+    return [done[i] for i in sorted(done)]
+
+
+def main(argv=None) -> int:
+    """Run the benchmark; returns the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--plans", help="bundled plans to run, NAME,... (default: all)")
+    parser.add_argument("--trials", type=int, default=100, help="Monte Carlo trials (100)")
+    parser.add_argument("--steps", type=int, default=21, help="steps of each sweep (21)")
+    parser.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (1000)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the Monte Carlo plants")
+    parser.add_argument("--time-limit", type=float, help="start no new plan after this [s]")
+    parser.add_argument(
+        "--quick", action="store_true", help=f"{QUICK_PLANS}, 5 trials, 3-step sweeps, no mass"
+    )
+    parser.add_argument(
+        "--workers", type=int, help="run on a local Dask cluster of N single-threaded workers"
+    )
+    parser.add_argument("--scheduler", help="run on the Dask cluster at ADDRESS (tcp://host:8786)")
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.plans, args.trials, args.steps = args.plans or QUICK_PLANS, 5, 3
+    if args.workers is not None and (args.workers < 1 or args.scheduler):
+        parser.error("--workers N (N >= 1) starts a local cluster; --scheduler uses a running one")
+    start = time.perf_counter()
+    problems = _problems(args.plans)
+    distributed = args.workers is not None or args.scheduler is not None
+    rows = (run_distributed if distributed else run_serial)(problems, args, start)
     print(f"\n{HEADER}")
     for r in rows:
         print(format_row(r))

@@ -17,6 +17,9 @@ import threading
 from pathlib import Path
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+SWEEP_GRACE = 15.0
+"""Seconds ``cpopt sweep`` gets after Ctrl-C to cancel its tasks and close its cluster before
+the process is ended (other commands get :data:`cpopt.budget.GRACE`)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -67,10 +70,66 @@ def _parser() -> argparse.ArgumentParser:
     solve.add_argument(
         "--quiet", action="store_true", help="no progress messages (shown on a terminal)"
     )
+    _sweep_parser(sub)
     check = sub.add_parser("check", help="validate problem files without solving")
     check.add_argument("files", nargs="+", metavar="FILE")
     sub.add_parser("list", help="show the bundled problems")
     return parser
+
+
+def _workers(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of workers >= 1, got {text!r}")
+    return value
+
+
+def _sweep_parser(sub) -> None:
+    sweep = sub.add_parser(
+        "sweep",
+        help="solve a grid of variants of one problem file on Dask (a local cluster or a "
+        "running one)",
+    )
+    sweep.add_argument("base", metavar="BASE.yaml", help="the problem file the points vary")
+    sweep.add_argument(
+        "--vary",
+        action="append",
+        required=True,
+        metavar="KEY=SPEC",
+        help="a key path (motion.duration, arm.links[2].mass, optimizer.limits.torque[0]) and "
+        "its values: a:b:n (n evenly spaced), a,b,c (a list) or random:a:b:n:seed; several "
+        "--vary make a full grid",
+    )
+    sweep.add_argument(
+        "--out", default="out", metavar="DIR", help="DIR/<point>/ and DIR/sweep.csv (default: out)"
+    )
+    sweep.add_argument(
+        "--workers",
+        type=_workers,
+        metavar="N",
+        help="single-threaded worker processes of the local cluster (default: one per core)",
+    )
+    sweep.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="use the running Dask cluster at ADDRESS (tcp://host:8786) instead of a local one",
+    )
+    sweep.add_argument(
+        "--time-limit",
+        type=_seconds,
+        metavar="SECONDS",
+        help="wall-clock limit of each point (default: the file's optimizer.solver.max_time)",
+    )
+    sweep.add_argument(
+        "--resume",
+        action="store_true",
+        help="skip points whose results in DIR are complete for the same problem",
+    )
+    sweep.add_argument("--plot", action="store_true", help="also write DIR/sweep.png")
+    sweep.add_argument("--quiet", action="store_true", help="no progress bar on stderr")
 
 
 def _error(message: str) -> None:
@@ -248,15 +307,21 @@ def _caused_by_interrupt(err: BaseException) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``cpopt`` command; returns the exit code."""
-    from .budget import hard_stop_on_interrupt
+    from .budget import GRACE, hard_stop_on_interrupt
 
+    words = sys.argv[1:] if argv is None else argv
+    grace = SWEEP_GRACE if words[:1] == ["sweep"] else GRACE
     try:
-        with hard_stop_on_interrupt(_interrupted, code=EXIT_INTERRUPTED):
+        with hard_stop_on_interrupt(_interrupted, grace=grace, code=EXIT_INTERRUPTED):
             args = _parser().parse_args(argv)
             if args.command == "check":
                 return _cmd_check(args.files)
             if args.command == "list":
                 return _cmd_list()
+            if args.command == "sweep":
+                from .sweep.run import main as sweep_main
+
+                return sweep_main(args)
             return _cmd_solve(args)
     except KeyboardInterrupt:
         _interrupted()

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import copy
 import multiprocessing
+import os
 import signal
+import threading
 import time
 
 from . import progress
@@ -24,9 +26,25 @@ from .results import Solution
 
 GRACE = 2.0
 """Seconds a child gets beyond the limit to stop by itself and send what it has."""
+ORPHAN_CHECK = 0.5
+"""Seconds between a child's checks that its parent is still there."""
+
+
+def _exit_with_parent() -> None:
+    """End this child when its parent is gone (killed: nobody will read the solution, and a
+    child blocked sending it would stay forever). Watched by a daemon thread."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(ORPHAN_CHECK)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="cpopt-parent-watch", daemon=True).start()
 
 
 def _child(problem: Problem, conn) -> None:
+    _exit_with_parent()
     signal.set_wakeup_fd(-1)  # the parent's Ctrl-C watcher is the parent's alone
     signal.signal(signal.SIGINT, signal.SIG_DFL)  # a Ctrl-C ends the child at once, silently
     relay = copy.copy(progress.current())

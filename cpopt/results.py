@@ -109,12 +109,12 @@ class Solution:
         return document
 
 
-def clean(value):
+def json_safe(value):
     """Make a value JSON-safe: numpy scalars to floats, non-finite floats to None."""
     if isinstance(value, dict):
-        return {k: clean(v) for k, v in value.items()}
+        return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [clean(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
@@ -183,7 +183,7 @@ def write_solution(solution: Solution, directory: str | Path) -> list[Path]:
         csv_path.unlink(missing_ok=True)
     # the JSON last: when it is there, the files it speaks for are too
     json_path = directory / "solution.json"
-    document = clean(solution.as_dict())
+    document = json_safe(solution.as_dict())
     atomic_write(json_path, lambda h: h.write(json.dumps(document, indent=2) + "\n"))
     written.insert(0, json_path)
     return written

@@ -87,7 +87,7 @@ class Solution(results.Solution):
 
     def to_dict(self) -> dict:
         """The ``solution.json`` document (JSON-ready: non-finite numbers are None)."""
-        return json.loads(json.dumps(results.clean(self.as_dict())))
+        return json.loads(json.dumps(results.json_safe(self.as_dict())))
 
     def save(self, directory: str | Path) -> list[Path]:
         """Write the files ``cpopt solve`` writes into a folder (created if need be):

@@ -13,7 +13,16 @@ from cpopt.problem import load_problem
 
 ROOT = Path(__file__).resolve().parent.parent
 PROBLEMS = ROOT / "problems"
-VERSIONS = ("casadi", "rockit-meco", "numpy", "scipy", "matplotlib", "PyYAML", "pydantic")
+VERSIONS = (
+    "casadi",
+    "rockit-meco",
+    "numpy",
+    "scipy",
+    "matplotlib",
+    "PyYAML",
+    "pydantic",
+    "distributed",
+)
 """The dependencies whose versions a run reports (CI installs the newest allowed ones)."""
 
 
