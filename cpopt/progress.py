@@ -85,6 +85,11 @@ def current() -> Progress:
     return _current
 
 
+def active() -> bool:
+    """True inside a :func:`reporting` block (the command line always has one, quiet or not)."""
+    return _current is not _SILENT
+
+
 def stage(text: str) -> None:
     """Report the stage the work has reached (``planning``, ``verifying``, ...)."""
     _current.stage(text)
@@ -101,4 +106,4 @@ def iteration(count: int, detail: str = "") -> None:
     _current.iteration(count, detail)
 
 
-__all__ = ["Progress", "current", "ipopt_run", "iteration", "reporting", "stage"]
+__all__ = ["Progress", "active", "current", "ipopt_run", "iteration", "reporting", "stage"]
