@@ -1,4 +1,6 @@
-"""Bounded ODE integration for the simulations: steps, state size and wall clock all capped.
+"""Bounded ODE integration of a Python right-hand side (the collocation replay): steps, state
+size and wall clock all capped. The verification's simulations of a CP plan step along its
+curve with :mod:`cpopt.extrapolation` instead, under the same bounds (defined here).
 
 A plan that is near-singular, or a closed loop that diverges, makes an adaptive integrator
 shrink its steps and crawl for minutes. :func:`integrate` steps scipy's DOP853 itself (the
