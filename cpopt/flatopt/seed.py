@@ -27,11 +27,14 @@ from ..budget import check_time
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..problem import Problem
 from ..trajectory import Trajectory, gamma_crossings
-from .transcribe import GAMMA_SAFETY
+from .transcribe import GAMMA_SAFETY, holding_pattern
 
 SEED_INTERVALS = 30
 """Collocation intervals of the seed (chosen by measurement: 30 finds the benchmark transfer's
 three crossings within 5 ms of those at N = 200, in a third of the time of N = 60)."""
+SIDE = 1e-9
+"""Seconds before and after a node where its left and right states are read (a trajectory
+holds a reset's time twice)."""
 PUSH = 0.5
 """Where the seed's |gamma| is below gamma_min, a node value is moved to gamma_min + PUSH
 [m/s^2] on its phase's side (a little inside the margin, so Ipopt starts interior)."""
@@ -176,22 +179,34 @@ def coarse_seed(problem: Problem, intervals: int = SEED_INTERVALS, lean_only: bo
     return Seed(traj, report)
 
 
-def state_at(traj: Trajectory, t: float, sign: int, gamma_min: float, K: float, g0: float):
+def state_at(
+    traj: Trajectory,
+    t: float,
+    sign: int,
+    gamma_min: float,
+    K: float,
+    g0: float,
+    at_margin: bool = False,
+):
     """The extended state z (8) the seed suggests at time t for a phase of this sign of gamma:
     its pose and velocities, xi that gives its gamma moved to the sign's side
-    (``gamma_min + PUSH`` where it is closer to zero than gamma_min), eta from the rate of its
-    gamma (gamma_dot = eta + 3 g0 cos(theta) thetadot)."""
-    z = np.array([np.interp(t, traj.t, traj.z[:, i]) for i in range(6)])
+    (``gamma_min + PUSH`` where it is closer to zero than gamma_min; exactly at the margin with
+    ``at_margin``, as a switch of a smooth-torque plan must be), eta from the rate of its gamma
+    (gamma_dot = eta + 3 g0 cos(theta) thetadot)."""
+    z = np.array([np.interp(t, traj.t, traj.z[:, i]) for i in range(8)])
     gamma = float(np.interp(t, traj.t, traj.gamma))
-    if sign * gamma < gamma_min * (1 + GAMMA_SAFETY):
+    if at_margin:
+        gamma = sign * gamma_min * (1 + GAMMA_SAFETY)
+    elif sign * gamma < gamma_min * (1 + GAMMA_SAFETY):
         gamma = sign * (gamma_min + PUSH)
     theta, thetadot = z[2], z[5]
-    xi = gamma + K * thetadot**2 - g0 * math.sin(theta)
-    width = max(MIN_PHASE / 2, 4 * float(np.median(np.diff(traj.t))))  # the knots' steps
-    lo, hi = max(t - width, traj.t[0]), min(t + width, traj.t[-1])
-    rate = (np.interp(hi, traj.t, traj.gamma) - np.interp(lo, traj.t, traj.gamma)) / (hi - lo)
-    eta = rate - 3 * g0 * math.cos(theta) * thetadot
-    return np.r_[z, xi, eta]
+    z[6] = gamma + K * thetadot**2 - g0 * math.sin(theta)
+    if not math.isfinite(z[7]):  # a collocation's eta is undefined: from its gamma's rate
+        width = max(MIN_PHASE / 2, 4 * float(np.median(np.diff(traj.t))))  # the knots' steps
+        lo, hi = max(t - width, traj.t[0]), min(t + width, traj.t[-1])
+        rate = (np.interp(hi, traj.t, traj.gamma) - np.interp(lo, traj.t, traj.gamma)) / (hi - lo)
+        z[7] = rate - 3 * g0 * math.cos(theta) * thetadot
+    return z
 
 
 def seeded_values(
@@ -206,9 +221,17 @@ def seeded_values(
     gamma_min = problem.spec.optimizer.gamma_min
     values = dict(problem.values)
     names = node_names(len(problem.nodes))
+    smooth = problem.spec.optimizer.smooth_torque
+    held = holding_pattern(problem, signs)
     for i, (name, node) in enumerate(zip(names, problem.nodes, strict=True)):
-        before = state_at(traj, node.t, signs[max(i - 1, 0)], gamma_min, arm.K, arm.gravity)
-        after = state_at(traj, node.t, signs[min(i, len(signs) - 1)], gamma_min, arm.K, arm.gravity)
+        sign_before, sign_after = signs[max(i - 1, 0)], signs[min(i, len(signs) - 1)]
+        switch = smooth and sign_before != sign_after and f"{name}.xi_after" in problem.free
+        before, after = (
+            state_at(traj, node.t + side, sign, gamma_min, arm.K, arm.gravity, at_margin=switch)
+            for side, sign in ((-SIDE, sign_before), (SIDE, sign_after))
+        )
+        if held[i]:
+            before[6] = after[6] = 0.0
         suggested = dict(zip(NODE_FIELDS, before, strict=True))
         suggested["xi_after"], suggested["eta_after"] = after[6], after[7]
         for field, value in suggested.items():

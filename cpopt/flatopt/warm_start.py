@@ -19,7 +19,7 @@ from ..plan import CPPlan, SingularPlanError, closed_form
 from ..problem import Problem
 from ..trajectory import Trajectory
 from .path_timing import initial_blocks, timing_guess, unpack
-from .seed import PUSH, seeded_values
+from .seed import PUSH, SIDE, seeded_values
 from .transcribe import FlatNLP, coefficient_count
 
 
@@ -134,6 +134,19 @@ def _joined_timing(nlp: FlatNLP, problem: Problem, x: np.ndarray, p: np.ndarray)
     return nlp.complete(core, p)
 
 
+def _seeded_alphas(nlp: FlatNLP, core: np.ndarray, problem: Problem, seed: Trajectory) -> None:
+    """Put the seed's compensator inputs at the nodes into ``core`` (in place) where it has them
+    (an exact plan does; a collocation's stay zero)."""
+    start = 0
+    for block in nlp.layout.blocks:
+        if block.kind == "alpha":
+            t = problem.nodes[int(block.name[len("alpha[") : -1])].t
+            alpha = [np.interp(t, seed.t, seed.alpha[:, j]) for j in range(block.size)]
+            if np.all(np.isfinite(alpha)):
+                core[start : start + block.size] = alpha
+        start += block.size
+
+
 FIT_SAMPLES = 200
 """Points per phase where a seed's CP is fitted."""
 
@@ -156,6 +169,7 @@ def seeded_guess(
         if block.kind == "coefficients":
             where.append((block, start))
         start += block.size
+    _seeded_alphas(nlp, core, problem, seed)
     outs = nlp.unpack(nlp.complete(core, p), p)
     times = [n.t for n in nodes_from_values(values, len(problem.nodes))]
     for k in range(len(problem.nodes) - 1):
@@ -171,24 +185,41 @@ def seeded_guess(
     return nlp.complete(core, p)
 
 
-FIT_SCALES = (1e-2, 0.1, 1e3)
-"""What one unit of misfit is in the seed's fit: CP position [m], CP acceleration [m/s^2], and
-the CP's fourth derivative [m/s^4], which the torque follows, as smoothing."""
+EXACT_FIT = 1e-3
+"""The unit of misfit [m] when fitting an exact plan (a polish or a re-solve starts from one):
+every CP derivative 0..4, the r-th in units of what a coefficient's change of this size does
+to it at most, so that every order counts alike and a plan in the same basis is reproduced
+(the benchmark transfer's switch plan re-solved from itself: 9 Ipopt iterations, where a fit
+of its position and acceleration alone started 240 iterations away)."""
+SEED_FIT = {0: 1e-2, 2: 0.1, 4: 1e3}
+"""The units of misfit when fitting a collocation seed, whose torques are piecewise constant:
+its CP position [m] and acceleration [m/s^2], and the fourth derivative [m/s^4] pulled towards
+zero as smoothing (a position fit alone leaves the ends, where the node values fix the jet,
+free to kink, and the torque follows the fourth derivative)."""
 
 
-def targets(seed: Trajectory, t: np.ndarray, least: float) -> list[np.ndarray]:
-    """The seed's CP position and acceleration at times t, the acceleration moved along the
-    link so that sign(least) gamma >= |least| (p'' + g0 e_y = gamma (cos, sin)(theta)): a
-    stretch where the seed's gamma is too small or of the other sign would start the phase
-    near its singularity."""
-    position, acceleration = (
-        np.column_stack([np.interp(t, seed.t, seed.cp[:, i, r]) for i in range(2)]) for r in (0, 2)
-    )
+def targets(
+    seed: Trajectory, t: np.ndarray, least: float, h: float, gains: list[float]
+) -> dict[int, tuple[np.ndarray, float]]:
+    """What the fit aims at at times t of a phase lasting h [s], per CP derivative order r:
+    (target (len(t), 2), unit of misfit), :data:`EXACT_FIT` (``gains[r]``: the most a unit
+    coefficient changes the r-th derivative in the phase's own time) or :data:`SEED_FIT`. The
+    acceleration is moved along the link so that sign(least) gamma >= |least|
+    (p'' + g0 e_y = gamma (cos, sin)(theta)): a stretch where the seed's gamma is too small or
+    of the other sign would start the phase near its singularity."""
+    exact = bool(np.all(np.isfinite(seed.cp[:, :, 4])))
+    units = {r: EXACT_FIT * gains[r] / h**r for r in range(5)} if exact else SEED_FIT
+    out = {}
+    for r, unit in units.items():
+        column = seed.cp[:, :, r] if exact or r < 4 else np.zeros_like(seed.cp[:, :, 0])
+        out[r] = (np.column_stack([np.interp(t, seed.t, column[:, i]) for i in range(2)]), unit)
     gamma = np.interp(t, seed.t, seed.gamma)
     theta = np.interp(t, seed.t, seed.z[:, 2])
     wanted = np.sign(least) * np.maximum(np.sign(least) * gamma, abs(least))
     along = np.column_stack([np.cos(theta), np.sin(theta)])
-    return [position, acceleration + (wanted - gamma)[:, None] * along, np.zeros_like(position)]
+    acceleration, unit = out[2]
+    out[2] = (acceleration + (wanted - gamma)[:, None] * along, unit)
+    return out
 
 
 def fitted(
@@ -199,16 +230,16 @@ def fitted(
     span: tuple[float, float],
     least: float,
 ) -> np.ndarray:
-    """The free rows of a phase's coefficients (the others fixed) that fit the seed's CP on
-    ``span`` [s] (:func:`targets`), with the fourth derivative kept small: a position fit
-    alone leaves the ends, where the node values fix the jet, free to kink."""
-    s = np.linspace(0.0, 1.0, FIT_SAMPLES)
+    """The free rows of a phase's coefficients (the others fixed) that fit the seed's CP and its
+    derivatives on ``span`` [s] (:func:`targets`) by least squares."""
     h = span[1] - span[0]
+    inside = SIDE / h  # the phase's own limits at its ends: a seed holds a reset's time twice
+    s = np.linspace(inside, 1.0 - inside, FIT_SAMPLES)
+    gains = [float(np.abs(basis.matrix(s, r)).max()) for r in range(5)]
     rows, rhs = [], []
-    wanted = targets(seed, span[0] + s * h, least)
-    for order, scale, target in zip((0, 2, 4), FIT_SCALES, wanted, strict=True):
-        B = basis.matrix(s, order) / h**order / scale
+    for order, (target, unit) in targets(seed, span[0] + s * h, least, h, gains).items():
+        B = basis.matrix(s, order) / h**order / unit
         rows.append(B[:, free])
-        rhs.append(target / scale - B[:, ~free] @ C[~free])
+        rhs.append(target / unit - B[:, ~free] @ C[~free])
     solution, *_ = np.linalg.lstsq(np.vstack(rows), np.vstack(rhs), rcond=None)
     return solution
