@@ -203,17 +203,20 @@ def targets(
 ) -> dict[int, tuple[np.ndarray, float]]:
     """What the fit aims at at times t of a phase lasting h [s], per CP derivative order r:
     (target (len(t), 2), unit of misfit), :data:`EXACT_FIT` (``gains[r]``: the most a unit
-    coefficient changes the r-th derivative in the phase's own time) or :data:`SEED_FIT`. The
+    coefficient changes the r-th derivative in the phase's own time) for an exact plan whose
+    gamma keeps the sign of ``least`` there, else :data:`SEED_FIT`. The
     acceleration is moved along the link so that sign(least) gamma >= |least|
     (p'' + g0 e_y = gamma (cos, sin)(theta)): a stretch where the seed's gamma is too small or
     of the other sign would start the phase near its singularity."""
-    exact = bool(np.all(np.isfinite(seed.cp[:, :, 4])))
+    gamma = np.interp(t, seed.t, seed.gamma)
+    # an exact plan whose gamma keeps this phase's sign (a re-solve, a polish dropping no
+    # switch here) is reproduced; across a sign change its jet would fight the moved acceleration
+    exact = bool(np.all(np.isfinite(seed.cp[:, :, 4])) and np.all(np.sign(least) * gamma > 0))
     units = {r: EXACT_FIT * gains[r] / h**r for r in range(5)} if exact else SEED_FIT
     out = {}
     for r, unit in units.items():
         column = seed.cp[:, :, r] if exact or r < 4 else np.zeros_like(seed.cp[:, :, 0])
         out[r] = (np.column_stack([np.interp(t, seed.t, column[:, i]) for i in range(2)]), unit)
-    gamma = np.interp(t, seed.t, seed.gamma)
     theta = np.interp(t, seed.t, seed.z[:, 2])
     wanted = np.sign(least) * np.maximum(np.sign(least) * gamma, abs(least))
     along = np.column_stack([np.cos(theta), np.sin(theta)])
