@@ -16,13 +16,16 @@ It prints one line per problem, exactly::
     E2E <name> wall=<s> startup=<s> plan=<s> verify=<s> write=<s> status=<status>
 
 and ``E2E_MEDIAN wall=<s>``. The compiled sample libraries are built first (one untimed solve
-per arm kind), so the figures are those of a warm cache. ``solution.json`` holds the stages
-measured inside the solver process too (``solver.stage_times``).
+per arm kind), so the figures are those of a warm cache; the processes may cache Python's
+bytecode as a user's do (:func:`user_environment`; ``--keep-environment`` runs them in this
+environment as it is). ``solution.json`` holds the stages measured inside the solver process
+too (``solver.stage_times``).
 
 Usage::
 
     python benchmarks/end_to_end.py                    # every bundled problem
     python benchmarks/end_to_end.py --problems paper_swing_up,swing_up_min_torque
+    python benchmarks/end_to_end.py --keep-environment  # e.g. PYTHONDONTWRITEBYTECODE kept
 """
 
 from __future__ import annotations
@@ -44,14 +47,33 @@ PROBLEMS = ROOT / "problems"
 STAGES = ("startup", "plan", "verify", "write")
 
 
-def run(path: Path, out: Path) -> tuple[float, list[tuple[float, str]], int]:
+def user_environment(keep: bool = False) -> dict[str, str]:
+    """The environment ``cpopt solve`` runs in: this one, except that Python may cache its
+    bytecode as it does by default (``PYTHONDONTWRITEBYTECODE`` removed, unless ``keep``).
+    Without the cache every process compiles cpopt's modules from source (0.1-0.2 s), which
+    a user's installation does once (pip compiles them at install; an editable install on the
+    first run)."""
+    env = dict(os.environ)
+    if not keep:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+    return env
+
+
+def run(
+    path: Path, out: Path, env: dict[str, str] | None = None
+) -> tuple[float, list[tuple[float, str]], int]:
     """Run ``cpopt solve`` on one file: wall time [s], (arrival [s], line) of every progress
     line, exit code."""
     master, slave = pty.openpty()
     command = [sys.executable, "-m", "cpopt", "solve", str(path), "--out", str(out)]
     start = time.perf_counter()
     child = subprocess.Popen(
-        command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=slave, stdin=subprocess.DEVNULL
+        command,
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=slave,
+        stdin=subprocess.DEVNULL,
+        env=env or user_environment(),
     )
     os.close(slave)
     lines, pending = [], b""
@@ -100,8 +122,9 @@ def status_of(out: Path, name: str) -> str:
         return "missing"
 
 
-def warm_up(paths: list[Path]) -> None:
-    """One untimed solve per arm kind: the compiled sample libraries exist afterwards."""
+def warm_up(paths: list[Path], env: dict[str, str]) -> None:
+    """One untimed solve per arm kind: the compiled sample libraries (and the bytecode cache)
+    exist afterwards."""
     seen = set()
     for path in paths:
         kind = next(
@@ -112,22 +135,29 @@ def warm_up(paths: list[Path]) -> None:
         if kind not in seen:
             seen.add(kind)
             with tempfile.TemporaryDirectory() as tmp:
-                run(path, Path(tmp))
+                run(path, Path(tmp), env)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", help="comma-separated names (default: every bundled one)")
+    parser.add_argument(
+        "--keep-environment",
+        action="store_true",
+        help="run with this environment as it is (by default PYTHONDONTWRITEBYTECODE is "
+        "removed: a user's Python caches bytecode)",
+    )
     args = parser.parse_args(argv)
+    env = user_environment(args.keep_environment)
     paths = sorted(PROBLEMS.glob("*.yaml"))
     if args.problems:
         wanted = set(args.problems.split(","))
         paths = [p for p in paths if p.stem in wanted]
-    warm_up(paths)
+    warm_up(paths, env)
     walls = []
     for path in paths:
         with tempfile.TemporaryDirectory() as tmp:
-            wall, lines, _ = run(path, Path(tmp))
+            wall, lines, _ = run(path, Path(tmp), env)
             times = stages(wall, lines)
             status = status_of(Path(tmp), path.stem)
         walls.append(wall)
