@@ -15,8 +15,8 @@ It prints one line per problem, exactly::
 
     E2E <name> wall=<s> startup=<s> plan=<s> verify=<s> write=<s> status=<status>
 
-and ``E2E_MEDIAN wall=<s>``. The compiled sample libraries are built first (one untimed solve
-per arm kind), so the figures are those of a warm cache; the processes may cache Python's
+and ``E2E_MEDIAN wall=<s>``. Every problem is solved once untimed first, so the figures are
+those of a warm cache of compiled libraries; the processes may cache Python's
 bytecode as a user's do (:func:`user_environment`; ``--keep-environment`` runs them in this
 environment as it is). ``solution.json`` holds the stages measured inside the solver process
 too (``solver.stage_times``).
@@ -123,19 +123,12 @@ def status_of(out: Path, name: str) -> str:
 
 
 def warm_up(paths: list[Path], env: dict[str, str]) -> None:
-    """One untimed solve per arm kind: the compiled sample libraries (and the bytecode cache)
+    """One untimed solve of every problem: the compiled libraries (the optimizer's samples per
+    arm kind, the verification's steps per arm kind and curve degree) and the bytecode cache
     exist afterwards."""
-    seen = set()
     for path in paths:
-        kind = next(
-            (line.split(":", 1)[1].strip() for line in path.read_text().splitlines()
-             if line.strip().startswith("kind:")),
-            "",
-        )  # fmt: skip
-        if kind not in seen:
-            seen.add(kind)
-            with tempfile.TemporaryDirectory() as tmp:
-                run(path, Path(tmp), env)
+        with tempfile.TemporaryDirectory() as tmp:
+            run(path, Path(tmp), env)
 
 
 def main(argv=None) -> int:

@@ -56,6 +56,39 @@ def lagrangian(arm, q, qd) -> tuple[ca.SX, ...]:
     return B, c + g, g, kinetic, potential
 
 
+ACTUATION = ca.vertcat(ca.SX.eye(2), ca.SX.zeros(1, 2))
+"""Which joints the two torques act on: the first two (the third is passive)."""
+
+
+def _forward(B: ca.SX, n: ca.SX, tau: ca.SX) -> ca.SX:
+    return ca.solve(B, ACTUATION @ tau - n)
+
+
+def _tracking(arm, q: ca.SX, qd: ca.SX, B: ca.SX, n: ca.SX, a: ca.SX) -> ca.SX:
+    # Unknowns (qdd, tau): B qdd + n = [I; 0] tau and J_w qdd + dJ_w/dt qd = a.
+    Jw = ca.jacobian(link_geometry(arm, q).wrist, q)
+    jdot_qd = ca.jtimes(Jw @ qd, q, qd)
+    M = ca.blockcat([[B, -ACTUATION], [Jw, ca.SX.zeros(2, 2)]])
+    return ca.solve(M, ca.vertcat(-n, a - jdot_qd))
+
+
+def forward_acceleration(arm, q: ca.SX, qd: ca.SX, tau) -> ca.SX:
+    """Joint accelerations (3) under the actuated torques tau = (tau1, tau2), the passive joint
+    free (an expression; q and qd symbols, the arm numeric or parametric as in
+    :func:`lagrangian`)."""
+    B, n, *_ = lagrangian(arm, q, qd)
+    return _forward(B, n, tau)
+
+
+def tracking_acceleration(arm, q: ca.SX, qd: ca.SX, a) -> tuple[ca.SX, ca.SX]:
+    """The joint accelerations (3) and actuated torques (2) that give the third link's base the
+    Cartesian acceleration ``a`` while the passive joint stays torque-free (expressions; q and
+    qd symbols, the arm numeric or parametric)."""
+    B, n, *_ = lagrangian(arm, q, qd)
+    sol = _tracking(arm, q, qd, B, n, a)
+    return sol[:3], sol[3:]
+
+
 @lru_cache(maxsize=32)
 def arm_dynamics(arm: Arm) -> dict[str, ca.Function]:
     """Dynamics functions of an arm (built once per arm and cached).
@@ -76,19 +109,10 @@ def arm_dynamics(arm: Arm) -> dict[str, ca.Function]:
     qdd = ca.SX.sym("qdd", 3)
     tau = ca.SX.sym("tau", 2)
     a = ca.SX.sym("a", 2)
-    geo = link_geometry(arm, q)
     B, n, g, kinetic, potential = lagrangian(arm, q, qd)
     generalized = B @ qdd + n
-    actuation = ca.vertcat(ca.SX.eye(2), ca.SX.zeros(1, 2))
-    qdd_forward = ca.solve(B, actuation @ tau - n)
-
-    # Unknowns (qdd, tau): B qdd + n = [I; 0] tau and J_w qdd + dJ_w/dt qd = a.
-    wrist = geo.wrist
-    Jw = ca.jacobian(wrist, q)
-    jdot_qd = ca.jtimes(Jw @ qd, q, qd)
-    M = ca.blockcat([[B, -actuation], [Jw, ca.SX.zeros(2, 2)]])
-    sol = ca.solve(M, ca.vertcat(-n, a - jdot_qd))
-
+    qdd_forward = _forward(B, n, tau)
+    sol = _tracking(arm, q, qd, B, n, a)
     return {
         "B": ca.Function("B", [q], [B]),
         "n": ca.Function("n", [q, qd], [n]),

@@ -95,22 +95,30 @@ def _split(v, shapes) -> list:
     return parts
 
 
+def step_of(system: ca.Function) -> ca.Function:
+    """The extrapolated step of ``system``: itself when it is one already (one input, e.g. a
+    compiled step of :mod:`cpopt.verify_steps`), else :func:`extrapolated_step` of it."""
+    return system if system.n_in() == 1 else extrapolated_step(system)
+
+
 class CurveStepper:
     """Steps of one system along one piecewise-polynomial curve, through a zero-copy buffer.
 
     Parameters
     ----------
-    rhs : casadi.Function
-        ``(x, lam, h, c, *extra) -> xdot`` (see :func:`extrapolated_step`).
+    system : casadi.Function
+        ``(x, lam, h, c, *extra) -> xdot`` (see :func:`extrapolated_step`), or its step
+        ``v -> [x1; err]`` already built (:func:`step_of`), whose coefficient matrix may have
+        more rows than the curve's pieces (they are padded with zeros).
     curve : PiecewisePolynomial
         The curve (``breaks`` [s] and per-piece coefficients in the local time).
     extra : array_like
-        The right-hand side's further arguments (gains, the sign of gamma), fixed.
+        The right-hand side's further arguments (gains, the sign of gamma, the arm), fixed.
     """
 
-    def __init__(self, rhs: ca.Function, curve, *extra) -> None:
-        step = extrapolated_step(rhs)
-        self.nx = rhs.size1_in(0)
+    def __init__(self, system: ca.Function, curve, *extra) -> None:
+        step = step_of(system)
+        self.nx = step.size1_out(0) // 2
         self.arg = np.zeros(step.size1_in(0))
         self.out = np.zeros(step.size1_out(0))
         tail = np.concatenate([np.ravel(np.asarray(e, float)) for e in extra]) if extra else []
@@ -119,8 +127,12 @@ class CurveStepper:
         self.buffer.set_arg(0, memoryview(self.arg))
         self.buffer.set_res(0, memoryview(self.out))
         self.breaks = np.asarray(curve.breaks, float)
-        # column-major, as CasADi stores the (degree + 1) x 2 coefficient matrix
-        self.coeffs = [np.ravel(c, order="F") for c in curve.coeffs]
+        rows = (self.arg.size - self.nx - 3 - len(tail)) // 2
+        # column-major, as CasADi stores the rows x 2 coefficient matrix (zeros below a
+        # piece's own degree + 1 rows: the same polynomial)
+        self.coeffs = [
+            np.ravel(_padded(np.asarray(c, float), rows), order="F") for c in curve.coeffs
+        ]
         self.piece = -1
 
     def step(self, x: np.ndarray, k: int, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -136,8 +148,14 @@ class CurveStepper:
         return self.out[:nx].copy(), self.out[nx:]
 
 
+def _padded(c: np.ndarray, rows: int) -> np.ndarray:
+    if c.shape[0] > rows:
+        raise ValueError(f"a piece of degree {c.shape[0] - 1} in a step for degree {rows - 1}")
+    return np.vstack([c, np.zeros((rows - c.shape[0], c.shape[1]))])
+
+
 def integrate_along(
-    rhs: ca.Function,
+    system: ca.Function,
     curve,
     x0: np.ndarray,
     samples: int,
@@ -146,12 +164,12 @@ def integrate_along(
     extra: tuple = (),
     steps_per_second: float = STEPS_PER_SECOND,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Integrate ``rhs`` along ``curve`` from its start to its end, bounded.
+    """Integrate ``system`` along ``curve`` from its start to its end, bounded.
 
     Parameters
     ----------
-    rhs : casadi.Function
-        ``(x, lam, h, c, *extra) -> xdot``.
+    system : casadi.Function
+        ``(x, lam, h, c, *extra) -> xdot``, or its extrapolated step (:class:`CurveStepper`).
     curve : PiecewisePolynomial
         The phase's CP curve (``t0``, ``t1``, ``breaks``, ``coeffs``).
     x0 : numpy.ndarray
@@ -161,7 +179,7 @@ def integrate_along(
     rtol, atol : float
         Tolerances of each step's error estimate, per state entry.
     extra : tuple
-        Further arguments of ``rhs``.
+        Further arguments of the right-hand side.
     steps_per_second : float
         Step budget per second, on top of :data:`~cpopt.integrate.BASE_STEPS`.
 
@@ -181,7 +199,7 @@ def integrate_along(
         When the problem's wall-clock budget runs out.
     """
     t_eval = np.linspace(curve.t0, curve.t1, samples)
-    stepper = CurveStepper(rhs, curve, *extra)
+    stepper = CurveStepper(system, curve, *extra)
     inner = stepper.breaks[1:-1]
     # sorted and without repeats (np.union1d would import numpy.ma: 60 ms of a fresh process)
     grid = np.sort(np.concatenate([t_eval, inner[(inner > curve.t0) & (inner < curve.t1)]]))
@@ -235,4 +253,4 @@ def _cover(stepper, x, piece, a, b, tolerances, steps, budget, h):
     return x, steps, h
 
 
-__all__ = ["SEQUENCE", "CurveStepper", "extrapolated_step", "integrate_along"]
+__all__ = ["SEQUENCE", "CurveStepper", "extrapolated_step", "integrate_along", "step_of"]

@@ -12,6 +12,10 @@ The reduced model and the closed loop reset the compensator (xi and eta) at via 
 plan does; in the open-loop replay a xi reset shows as the step of the torques there.
 
 The controller may use a nominal arm while the simulated plant is another (model errors).
+
+Each simulation steps along the plan's pieces with an extrapolated midpoint step
+(:mod:`cpopt.extrapolation`) compiled once per arm kind and curve degree, the arms' parameters
+its inputs (:mod:`cpopt.verify_steps`).
 """
 
 from __future__ import annotations
@@ -25,12 +29,14 @@ import numpy as np
 from . import flat, progress
 from .dynamics import arm_dynamics, inverse_dynamics
 from .extrapolation import integrate_along
+from .flatopt.samples import arm_vector
 from .integrate import STEPS_PER_SECOND, DivergenceError
 from .kinematics import inverse_derivatives, inverse_position, joint_state, kinematic_functions
 from .mapping import mapped
 from .plan import CPPlan, Node
 from .robot import Arm
 from .tracking.dfl import DEFAULT_POLES, dfl_law, pole_placement_gains
+from .verify_steps import step_function
 
 
 @dataclass(frozen=True)
@@ -95,54 +101,6 @@ def _result(plan, mode, t, states, tau=None) -> SimulationResult:
     )
 
 
-@lru_cache(maxsize=16)
-def _jet(degree: int) -> ca.Function:
-    """``(lam, h, c) -> P``: a polynomial piece ``sum_j c_j lam^j`` (c: (degree + 1) x 2) of
-    length h [s] at local time lam in [0, 1], with its time derivatives 0..4 (2 x 5)."""
-    lam, h = ca.SX.sym("lam"), ca.SX.sym("h")
-    c = ca.SX.sym("c", degree + 1, 2)
-    p = sum(c[j, :].T * lam**j for j in range(degree + 1))
-    columns = [p]
-    for _ in range(4):
-        columns.append(ca.jacobian(columns[-1], lam) / h)
-    return ca.Function("jet", [lam, h, c], [ca.horzcat(*columns)])
-
-
-@lru_cache(maxsize=16)
-def _reduced_rhs(K: float, g0: float, degree: int) -> ca.Function:
-    """``(z, lam, h, c) -> zdot``: the reduced model and compensator driven by the piece's
-    fourth derivative."""
-    z, lam, h = ca.SX.sym("z", 8), ca.SX.sym("lam"), ca.SX.sym("h")
-    c = ca.SX.sym("c", degree + 1, 2)
-    P = _jet(degree)(lam, h, c)
-    zdot = flat.flat_functions(K, g0)["compensator"](z, P[:, 4])[1]
-    return ca.Function("reduced_rhs", [z, lam, h, c], [zdot])
-
-
-@lru_cache(maxsize=16)
-def _closed_loop_rhs(model: Arm, plant: Arm, degree: int) -> ca.Function:
-    """``(X, lam, h, c, gains) -> Xdot``: the closed loop following a polynomial piece."""
-    X, lam, h = ca.SX.sym("X", 8), ca.SX.sym("lam"), ca.SX.sym("h")
-    c, gains = ca.SX.sym("c", degree + 1, 2), ca.SX.sym("k", 4)
-    Xdot = _closed_loop_function(model, plant)(X, _jet(degree)(lam, h, c), gains)[0]
-    return ca.Function("closed_loop_rhs", [X, lam, h, c, gains], [Xdot])
-
-
-@lru_cache(maxsize=16)
-def _open_loop_rhs(model: Arm, plant: Arm, degree: int) -> ca.Function:
-    """``(x, lam, h, c, sigma) -> xdot``: the plant under the model's nominal torques of a
-    polynomial piece (the flat inverse map, inverse kinematics and inverse dynamics of the
-    compiled per-sample library, :mod:`cpopt.flatopt.samples`)."""
-    from .flatopt.samples import TAU, arm_vector, sample_library
-
-    x, lam, h = ca.MX.sym("x", 6), ca.MX.sym("lam"), ca.MX.sym("h")
-    c, sigma = ca.MX.sym("c", degree + 1, 2), ca.MX.sym("sigma")
-    sample = sample_library(model.kind).functions["sample"]
-    tau = sample(_jet(degree)(lam, h, c), sigma, ca.DM(arm_vector(model)))[TAU]
-    qdd = arm_dynamics(plant)["forward"](x[:3], x[3:], tau)
-    return ca.Function("open_loop_rhs", [x, lam, h, c, sigma], [ca.vertcat(x[3:], qdd)])
-
-
 def simulate_reduced(
     plan: CPPlan, samples: int = 201, rtol: float = 1e-11, atol: float = 1e-11
 ) -> SimulationResult:
@@ -155,8 +113,8 @@ def simulate_reduced(
             z = z.copy()
             node = plan.nodes[k]
             z[6:8] += node.state(after=True)[6:8] - node.state()[6:8]  # the planned resets
-        rhs = _reduced_rhs(K, g0, ph.curve.coeffs.shape[1] - 1)
-        t, zs = integrate_along(rhs, ph.curve, z, samples, rtol, atol)
+        step = step_function("reduced", plan.arm.kind, ph.curve.coeffs.shape[1] - 1)
+        t, zs = integrate_along(step, ph.curve, z, samples, rtol, atol, ([K, g0],))
         z = zs[-1]
         ts.append(t)
         states.append(zs[:, :6])
@@ -226,11 +184,11 @@ def simulate_closed_loop(
             # the planned resets of xi and eta: the compensator jumps, the arm's state does not
             X[6:8] += node.state(after=True)[6:8] - node.state()[6:8]
 
-        degree = ph.curve.coeffs.shape[1] - 1
-        rhs = _closed_loop_rhs(model, plant or model, degree)
+        step = step_function("closed_loop", model.kind, ph.curve.coeffs.shape[1] - 1)
         # the step size shrinks with the poles: the budget grows with them (x1 up to -10 1/s)
         rate = STEPS_PER_SECOND * max(1.0, float(np.max(np.abs(poles))) / 10)
-        t, Xs = integrate_along(rhs, ph.curve, X, samples, rtol, atol, (gains,), rate)
+        extra = (gains, arm_vector(model), arm_vector(plant or model))
+        t, Xs = integrate_along(step, ph.curve, X, samples, rtol, atol, extra, rate)
         X = Xs[-1]
         Pd = ph.curve.derivatives(t, 4)
         tau = np.asarray(mapped(f, t.size)(Xs.T, Pd.transpose(1, 0, 2).reshape(2, -1), gains)[1]).T
@@ -266,9 +224,9 @@ def simulate_open_loop(
     X = np.concatenate([q0, qd0])
     ts, states, taus = [], [], []
     for k, ph in enumerate(plan.phases):
-        degree = ph.curve.coeffs.shape[1] - 1
-        rhs = _open_loop_rhs(plan.arm, plant or plan.arm, degree)
-        t, Xs = integrate_along(rhs, ph.curve, X, samples, rtol, atol, (ph.sigma,))
+        step = step_function("open_loop", plan.arm.kind, ph.curve.coeffs.shape[1] - 1)
+        extra = (ph.sigma, arm_vector(plan.arm), arm_vector(plant or plan.arm))
+        t, Xs = integrate_along(step, ph.curve, X, samples, rtol, atol, extra)
         X = Xs[-1]
         ts.append(t)
         states.append(pose_states(plant or plan.arm, Xs))
