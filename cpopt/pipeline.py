@@ -203,13 +203,15 @@ def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
     )
 
 
-def plan_optimized(problem: Problem, partial: StageRecord) -> Solution:
-    """The flat optimizer, then sampling and verification of its plan (or best iterate)."""
+def plan_optimized(problem: Problem, partial: StageRecord, start: CPPlan | None = None) -> Solution:
+    """The flat optimizer (started from the plan ``start`` when given, see
+    :func:`cpopt.flatopt.optimize`), then sampling and verification of its plan (or best
+    iterate)."""
     from .flatopt import optimize
 
     partial.reached("planning (flat optimizer)")
     progress.ipopt_run("flat optimizer")
-    result = optimize(problem)
+    result = optimize(problem, start)
     if result.plan is None:
         return Solution(
             problem.name,
@@ -257,9 +259,10 @@ PLANNERS: dict[str, Callable[[Problem, StageRecord], Solution]] = {
 verifies, recording its stages."""
 
 
-def solve(problem: Problem) -> Solution:
+def solve(problem: Problem, start: CPPlan | None = None) -> Solution:
     """Solve a validated problem with its planner and verify the result, within its time limit;
-    with a ``tracking`` block, also track the solved plan on its plant.
+    with a ``tracking`` block, also track the solved plan on its plant. ``start``, a plan of a
+    neighbouring problem, starts the flat optimizer (``planner: optimize`` only).
 
     Returns
     -------
@@ -277,7 +280,10 @@ def solve(problem: Problem) -> Solution:
     budget = Budget(problem.max_time)
     try:
         with enforced(budget):
-            solution = PLANNERS[problem.planner](problem, partial)
+            if start is not None and problem.planner == "optimize":
+                solution = plan_optimized(problem, partial, start)
+            else:
+                solution = PLANNERS[problem.planner](problem, partial)
             if problem.spec.tracking is not None and solution.ok:
                 from .tracking import track_problem
 

@@ -240,3 +240,18 @@ def test_a_collocation_solution_samples_its_polynomials():
     for name in ("q", "qd", "tau", "gamma"):
         np.testing.assert_allclose(getattr(got, name), getattr(traj, name)[idx], err_msg=name)
     assert np.isnan(got.z[:, 7]).all()  # eta is undefined under piecewise-constant torques
+
+
+def test_start_is_a_solution_with_a_plan_for_the_flat_optimizer(swing_up):
+    with pytest.raises(ValueError, match="applies to planner optimize, not 'closed_form'"):
+        cpopt.solve(SWING_UP, start=swing_up)
+    with pytest.raises(ValueError, match="start must be a Solution"):
+        cpopt.solve(SWING_UP, planner="optimize", start="plan.json")
+
+
+def test_a_start_solution_starts_the_optimizer(swing_up):
+    """The paper swing-up's closed-form plan starts the optimizer on the same motion: one
+    solve of its sign, reported as such."""
+    sol = cpopt.solve(SWING_UP, planner="optimize", start=swing_up)
+    assert sol.status == "solved"
+    assert sol.to_dict()["solver"]["search"]["method"] == "start"

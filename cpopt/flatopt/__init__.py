@@ -18,7 +18,7 @@ optimizer adds via states that reset xi to switch the sign (``gamma_switches``),
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,6 +38,7 @@ from .refine import (
     quadrature_gaps,
     violations,
 )
+from .restart import restart
 from .seeded import search as seeded_search
 from .transcribe import FlatNLP, build, initial_grids, phase_pieces
 from .warm_start import initial_guess, seeded_guess
@@ -316,13 +317,17 @@ def solve_for_signs(
     )
 
 
-def optimize(problem: Problem) -> OptimizeResult:
+def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
     """Optimize a problem's plan with Ipopt (see the module docstring).
 
     Parameters
     ----------
     problem : Problem
         A problem with ``planner: optimize``.
+    start : CPPlan, optional
+        A plan of a neighbouring problem (another mass, duration, limit) to start from: its
+        pattern of signs of gamma is solved once from it, without the switch search
+        (:mod:`cpopt.flatopt.restart`); the usual search runs when that does not solve.
 
     Returns
     -------
@@ -332,8 +337,18 @@ def optimize(problem: Problem) -> OptimizeResult:
         name and time.
     """
     o = problem.spec.optimizer
-    seeded = o.gamma_switches != 0 and o.switch_search == "seed"
-    search = (seeded_search if seeded else switching.search)(problem, solve_for_signs)
+    search, why_not = None, ""
+    if start is not None:
+        progress.stage("flat optimizer: started from the given plan")
+        search, why_not = restart(problem, solve_for_signs, start)
+    if search is None:
+        seeded = o.gamma_switches != 0 and o.switch_search == "seed"
+        search = (seeded_search if seeded else switching.search)(problem, solve_for_signs)
+        if why_not:
+            summary = f"{why_not}: the usual search; {search.summary}"
+            search = replace(
+                search, summary=summary, figures={**search.figures, "summary": summary}
+            )
     attempts, best = search.attempts, search.best
     if len(set(best.signs)) == 1:
         message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
