@@ -9,6 +9,8 @@ Bad input wins over a failure.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import math
 import os
 import signal
@@ -354,15 +356,26 @@ def run() -> None:
 
     After Ctrl-C the process ends with ``os._exit(130)``: CPython may otherwise turn a
     KeyboardInterrupt that was caught inside an interrupted import into death by SIGINT at
-    shutdown (exit status -2 instead of 130).
+    shutdown (exit status -2 instead of 130). Every command but ``sweep`` ends that way too,
+    its output flushed: all its files are written and closed by then, and the interpreter's
+    teardown (freeing CasADi's functions, Ipopt and the modules) took 0.05-0.1 s of every
+    ``cpopt solve``. A sweep exits normally, so that Dask cleans up after its cluster.
     """
     own_ctrl_c()
     code = main()
-    if code == EXIT_INTERRUPTED:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
+    if code == EXIT_INTERRUPTED or sys.argv[1:2] != ["sweep"]:
+        _exit_now(code)
     sys.exit(code)
+
+
+def _exit_now(code: int) -> None:
+    """Flush the output streams and the loggers, then end the process with ``code``."""
+    for stream in (sys.stdout, sys.stderr):
+        # a reader that left, a closed stream: nothing to keep
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+    logging.shutdown()
+    os._exit(code)
 
 
 if __name__ == "__main__":
