@@ -206,3 +206,15 @@ def test_freed_fields_after_a_via_state_follow_its_resets():
     assert freed_fields("via[0]", {"via[0].xi_after": (-5, 5)}, reset, after=True) == {"xi"}
     assert freed_fields("via[0]", {"via[0].xi": (-40, -10)}, plain, after=True) == {"xi"}
     assert freed_fields("via[0]", {"via[0].eta": (-9, 9)}, plain, after=True) == {"eta"}
+
+
+def test_lower_inverse_is_scipys_with_exact_zeros_above_the_diagonal():
+    from scipy.linalg import solve_triangular
+
+    from cpopt.flatopt.path_timing import lower_inverse
+
+    L = np.tril(np.random.default_rng(3).uniform(0.5, 2.0, (5, 5)))
+    inverse = lower_inverse(L)
+    assert np.allclose(inverse, solve_triangular(L, np.eye(5), lower=True), rtol=1e-14, atol=0)
+    assert np.all(np.triu(inverse, 1) == 0)
+    assert np.allclose(inverse @ L, np.eye(5), atol=1e-14)
