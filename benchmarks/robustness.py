@@ -23,7 +23,9 @@ exactly ``ROBUST <plan> <controller> sweep=<fraction> monte_carlo=<fraction>``.
 again with ``optimizer.limits.torque_headroom`` h (``--headroom``, default
 :data:`HEADROOM`, the README's recommendation; 0 skips this) on the benchmark's motors: the
 problem's own torque limits, or where it has none the 1.5 x peak motors of its h = 0 plan
-(then set as its torque limits, which that plan meets, so h = 0 is the same plan). The
+(then set as its torque limits, which that plan meets, so h = 0 is the same plan). A plan
+whose peak torques already leave h of the motors (every plan on 1.5 x peak motors when
+h <= 1/3) is itself the optimum with headroom h and is not solved again. The
 re-solved plan is tracked with ``tvlqr`` on the h = 0 plan's benchmark plant (the same motors,
 friction and Monte Carlo draws), and one line per plan gives
 ``HEADROOM <plan> h=<h> cost=<objective ratio to h=0> duration=<ratio> monte_carlo=<fraction>``.
@@ -178,14 +180,20 @@ def measure_headroom(problem, plan, objective: float, args) -> HeadroomRow:
     except ProblemError as err:
         row.note = f"refused: {err.path}: {err.message}"
         return row
-    solution = solve(changed)
-    if not solution.ok:
-        row.note = f"not solved with headroom ({solution.status})"
-        return row
-    row.cost = solution.solver.objective / objective
-    row.duration = solution.plan.duration / plan.duration
-    row.usage = tuple(solution.metrics.torque_usage)
-    controller = make_controller(HEADROOM_CONTROLLER, reference(solution.plan, args.rate))
+    usage = np.abs(base.reference.tau).max(axis=0) / np.asarray(plant.torque_limit)
+    if np.all(usage <= 1 - args.headroom):
+        # the h = 0 plan keeps the headroom already (as on 1.5 x peak motors with h <= 1/3):
+        # optimal on the larger feasible set and feasible on the smaller, it is the plan
+        row.cost, row.duration, row.usage, controller = 1.0, 1.0, tuple(usage), base
+    else:
+        solution = solve(changed)
+        if not solution.ok:
+            row.note = f"not solved with headroom ({solution.status})"
+            return row
+        row.cost = solution.solver.objective / objective
+        row.duration = solution.plan.duration / plan.duration
+        row.usage = tuple(solution.metrics.torque_usage)
+        controller = make_controller(HEADROOM_CONTROLLER, reference(solution.plan, args.rate))
     nominal = plant.parameters()
     sweep = run_trials(controller, sweep_parameters(nominal, 0.2, args.steps), noise)
     mc_rows = monte_carlo_parameters(nominal, args.trials, 0.1, args.seed)
@@ -215,7 +223,7 @@ def format_headroom(r: HeadroomRow) -> str:
     usage = "/".join(f"{u:.3f}" for u in r.usage)
     return (
         f"{head} cost x{r.cost:6.3f} duration x{r.duration:6.3f} peak/limit {usage:>11s} "
-        f"sweep {r.sweep:6.3f} MC {r.monte_carlo:6.3f} {r.seconds:6.1f} s"
+        f"sweep {r.sweep:6.3f} MC {r.monte_carlo:6.3f} {r.seconds:6.1f}"
     )
 
 
@@ -394,7 +402,7 @@ def main(argv=None) -> int:
         print(format_row(r))
     if headroom:
         print(
-            f"\nheadroom: the plans re-solved, tracked with {HEADROOM_CONTROLLER} on the h = 0 "
+            f"\nheadroom: the plans with headroom, tracked with {HEADROOM_CONTROLLER} on the h = 0 "
             "plans' benchmark plants"
         )
         for r in headroom:
