@@ -188,3 +188,11 @@ def test_a_time_optimal_plan_pays_headroom_in_time():
     assert max(sol.metrics.torque_usage) <= 0.8 * (1 + 1e-4)
     # 1.0704 s at h = 0 (tests/optimal_costs.json), 1.3437 s with 20 % headroom
     assert sol.plan.duration == pytest.approx(1.3437, rel=2e-3)
+
+
+def test_the_torque_figure_draws_the_plans_bound(with_headroom):
+    from cpopt.plotting import plot_torques
+
+    fig = plot_torques(with_headroom, limits=[120, 50])
+    levels = sorted({round(abs(line.get_ydata()[0]), 6) for line in fig.axes[0].lines[2:]})
+    assert levels == [40.0, 50.0, 96.0, 120.0]  # the limits and 0.8 of them
