@@ -32,6 +32,8 @@ class Limit:
     headroom : float
         For a torque limit planned with ``optimizer.limits.torque_headroom``: the fraction h of
         the motor's limit left to feedback; ``lower`` and ``upper`` are then (1 - h) times it.
+    motor : float or None
+        That motor's full limit [N m or N] (None: ``upper``).
     """
 
     quantity: str
@@ -41,12 +43,13 @@ class Limit:
     label: str
     magnitude: bool
     headroom: float = 0.0
+    motor: float | None = None
 
     @property
     def rated(self) -> float:
-        """The full limit of a magnitude limit planned with headroom (the motor's torque),
-        ``upper / (1 - headroom)``; the upper bound itself without headroom."""
-        return self.upper / (1 - self.headroom) if self.headroom else self.upper
+        """The full limit: the motor's torque of a limit planned with headroom, the upper bound
+        itself otherwise."""
+        return self.upper if self.motor is None else self.motor
 
     def bounds(self, safety: float = 0.0) -> tuple[float, float]:
         """The bounds; a magnitude limit is tightened by the relative ``safety`` margin (a
@@ -83,7 +86,7 @@ def arm_limits(spec, arm: Arm) -> tuple[Limit, ...]:
             label = f"|tau{i + 1}| <= {tmax:g}"
             if h:
                 label = f"|tau{i + 1}| <= {bound:g} ({tmax:g} less {100 * h:g} % headroom)"
-            out.append(Limit("tau", i, -bound, bound, label, True, h))
+            out.append(Limit("tau", i, -bound, bound, label, True, h, float(tmax)))
     for i, pair in enumerate(spec.joint_position or ()):
         if pair is not None:
             lo, hi = np.radians(pair) if revolute[i] else pair

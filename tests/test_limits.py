@@ -91,6 +91,10 @@ def test_headroom_tightens_the_plans_torque_limits_only():
     [
         ({"optimizer.limits.torque_headroom": 1.0}, "optimizer.limits.torque_headroom",
          "not a fraction in [0, 1)"),
+        ({"optimizer.limits.torque_headroom": "20 %"}, "optimizer.limits.torque_headroom",
+         "expected a number h or a pair [h1, h2] (fractions 0 <= h < 1), got '20 %'"),
+        ({"optimizer.limits.torque_headroom": [0.1, 0.1, 0.1]},
+         "optimizer.limits.torque_headroom", "expected a number h or a pair [h1, h2]"),
         ({"optimizer.limits.torque_headroom": [0.2, -0.1]},
          "optimizer.limits.torque_headroom[1]", "not a fraction in [0, 1)"),
         ({"optimizer.limits.torque": [120, None], "optimizer.limits.torque_headroom": [0, 0.2]},

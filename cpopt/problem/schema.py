@@ -17,8 +17,10 @@ from pydantic import (
     Discriminator,
     Field,
     Tag,
+    ValidationError,
     field_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from ..objectives import OBJECTIVES
 from ..tracking.dfl import DEFAULT_POLES
@@ -128,6 +130,17 @@ class LimitsSpec(_Spec):
     torque_headroom: Number | Pair(Number) = 0.0
     joint_position: Triple(Pair(Number) | None) | None = None
     joint_velocity: Triple(Positive | None) | None = None
+
+    @field_validator("torque_headroom", mode="wrap")
+    @classmethod
+    def _one_or_two_numbers(cls, value, handler):
+        # one message for the union, not one per member named by its type
+        try:
+            return handler(value)
+        except ValidationError:
+            raise PydanticCustomError(
+                "headroom", "expected a number h or a pair [h1, h2] (fractions 0 <= h < 1)"
+            ) from None
 
 
 DEFAULT_MAX_TIME = 300.0
