@@ -19,6 +19,17 @@ velocity within 0.25 rad/s (m/s) of the goal's, and it never diverged
 (:class:`cpopt.tracking.Tolerance`). It prints a table and one line per plan and controller,
 exactly ``ROBUST <plan> <controller> sweep=<fraction> monte_carlo=<fraction>``.
 
+**Headroom.** Each optimized plan (planner ``optimize`` or ``collocation``) is also solved
+again with ``optimizer.limits.torque_headroom`` h (``--headroom``, default
+:data:`HEADROOM`, the README's recommendation; 0 skips this) on the benchmark's motors: the
+problem's own torque limits, or where it has none the 1.5 x peak motors of its h = 0 plan
+(then set as its torque limits, which that plan meets, so h = 0 is the same plan). A plan
+whose peak torques already leave h of the motors (every plan on 1.5 x peak motors when
+h <= 1/3) is itself the optimum with headroom h and is not solved again. The
+re-solved plan is tracked with ``tvlqr`` on the h = 0 plan's benchmark plant (the same motors,
+friction and Monte Carlo draws), and one line per plan gives
+``HEADROOM <plan> h=<h> cost=<objective ratio to h=0> duration=<ratio> monte_carlo=<fraction>``.
+
 With ``--workers N`` (a local Dask cluster of N single-threaded worker processes) or
 ``--scheduler ADDRESS`` (a running Dask cluster) the work runs as tasks, as ``cpopt sweep``
 runs its points: one task solves each plan, then one task per plan and controller runs its
@@ -36,6 +47,7 @@ Usage::
     python benchmarks/robustness.py --workers 2           # the same figures, on two workers
     python benchmarks/robustness.py --plans paper_transfer --trials 20
     python benchmarks/robustness.py --quick               # a small run (a test)
+    python benchmarks/robustness.py --plans swing_up_min_time --headroom 0.1 --trials 20
 """
 
 from __future__ import annotations
@@ -115,6 +127,116 @@ def measure(problem, plan, name: str, args) -> Row:
     return row
 
 
+# --- Headroom: the plan re-solved with torque headroom, tracked with tvlqr -----------------
+
+HEADROOM = 0.2
+"""The headroom the README recommends (``--headroom``): see its robustness section."""
+HEADROOM_CONTROLLER = "tvlqr"
+
+
+@dataclass
+class HeadroomRow:
+    """One plan re-solved with headroom h: ratios to its h = 0 plan (objective, duration),
+    tvlqr's success on the h = 0 plan's benchmark plant, time in s."""
+
+    plan: str
+    h: float
+    cost: float = float("nan")
+    duration: float = float("nan")
+    sweep: float = float("nan")
+    monte_carlo: float = float("nan")
+    usage: tuple = (float("nan"), float("nan"))
+    seconds: float = 0.0
+    note: str = ""
+
+
+def with_headroom(problem, controller, h: float):
+    """The problem with headroom h on the benchmark's motors (its own torque limits, or the
+    1.5 x peak motors of the plan the controller tracks), and the benchmark plant and noise."""
+    from cpopt.tracking.robustness import benchmark_plant
+
+    plant, noise = benchmark_plant(controller, problem.spec.optimizer.limits.torque)
+    motors = [float(v) for v in plant.torque_limit]
+    changed = problem.replace(
+        **{"optimizer.limits.torque": motors, "optimizer.limits.torque_headroom": h}
+    )
+    return changed, plant, noise
+
+
+def measure_headroom(problem, plan, objective: float, args) -> HeadroomRow:
+    """The plan re-solved with headroom ``args.headroom``, measured against the h = 0 plan."""
+    from cpopt.pipeline import solve
+    from cpopt.problem import ProblemError
+    from cpopt.tracking import Noise
+    from cpopt.tracking.reference import reference
+    from cpopt.tracking.robustness import monte_carlo_parameters, run_trials, sweep_parameters
+    from cpopt.tracking.run import make_controller
+
+    tic = time.perf_counter()
+    row = HeadroomRow(problem.name, args.headroom)
+    base = make_controller(HEADROOM_CONTROLLER, reference(plan, args.rate))
+    try:
+        changed, plant, noise = with_headroom(problem, base, args.headroom)
+    except ProblemError as err:
+        row.note = f"refused: {err.path}: {err.message}"
+        return row
+    usage = np.abs(base.reference.tau).max(axis=0) / np.asarray(plant.torque_limit)
+    if np.all(usage <= 1 - args.headroom):
+        # the h = 0 plan keeps the headroom already (as on 1.5 x peak motors with h <= 1/3):
+        # optimal on the larger feasible set and feasible on the smaller, it is the plan
+        row.cost, row.duration, row.usage, controller = 1.0, 1.0, tuple(usage), base
+    else:
+        solution = solve(changed)
+        if not solution.ok:
+            row.note = f"not solved with headroom ({solution.status})"
+            return row
+        row.cost = solution.solver.objective / objective
+        row.duration = solution.plan.duration / plan.duration
+        row.usage = tuple(solution.metrics.torque_usage)
+        controller = make_controller(HEADROOM_CONTROLLER, reference(solution.plan, args.rate))
+    nominal = plant.parameters()
+    sweep = run_trials(controller, sweep_parameters(nominal, 0.2, args.steps), noise)
+    mc_rows = monte_carlo_parameters(nominal, args.trials, 0.1, args.seed)
+    mc = run_trials(controller, mc_rows, Noise(noise.position, noise.velocity, args.seed))
+    row.sweep, row.monte_carlo = sweep.rate, mc.rate
+    row.seconds = time.perf_counter() - tic
+    return row
+
+
+def headroom_applies(problem, args) -> bool:
+    """Whether a plan gets a HEADROOM line: an optimized plan, and a headroom asked for."""
+    return args.headroom > 0 and problem.planner != "closed_form"
+
+
+def headroom_task(data: dict, source: str, plan, objective: float, args) -> HeadroomRow:
+    """:func:`measure_headroom` in a worker, from the problem's data and its h = 0 plan."""
+    from cpopt.problem import parse_problem
+
+    return measure_headroom(parse_problem(data, source), plan, objective, args)
+
+
+def format_headroom(r: HeadroomRow) -> str:
+    """One headroom table line (a plan that could not be re-solved says why)."""
+    head = f"{r.plan:24s} h={r.h:<5g}"
+    if r.note:
+        return f"{head} {r.note}"
+    usage = "/".join(f"{u:.3f}" for u in r.usage)
+    return (
+        f"{head} cost x{r.cost:6.3f} duration x{r.duration:6.3f} peak/limit {usage:>11s} "
+        f"sweep {r.sweep:6.3f} MC {r.monte_carlo:6.3f} {r.seconds:6.1f}"
+    )
+
+
+def headroom_line(r: HeadroomRow) -> str:
+    """``HEADROOM <plan> h=<h> cost=<ratio> duration=<ratio> monte_carlo=<fraction>``."""
+    return (
+        f"HEADROOM {r.plan} h={r.h:g} cost={r.cost:.3f} duration={r.duration:.3f} "
+        f"monte_carlo={r.monte_carlo:.3f}"
+    )
+
+
+# --- The table and the serial and distributed runs ---------------------------------------
+
 HEADER = (
     f"{'plan':24s} {'planner':11s} {'ctrl':5s} {'perfect [m]':>11s} {'sweep':>6s} "
     f"{'MC':>6s} {'MC cp med':>9s} {'MC cp p95':>9s} {'mass+ bench/model':>17s} "
@@ -146,8 +268,9 @@ def _problems(selection: str | None):
     return [load_problem(files[n]) for n in names]
 
 
-def run_serial(problems, args, start: float) -> list[Row]:
-    """Each plan solved, then measured with each controller, in this process."""
+def run_serial(problems, args, start: float) -> list:
+    """Each plan solved, then measured with each controller (then with headroom), in this
+    process: its rows (:class:`Row`, :class:`HeadroomRow`)."""
     from cpopt.pipeline import solve
 
     rows: list[Row] = []
@@ -163,6 +286,10 @@ def run_serial(problems, args, start: float) -> list[Row]:
             for name in CONTROLLERS:
                 rows.append(measure(problem, solution.plan, name, args))
                 print(format_row(rows[-1]), flush=True)
+            if headroom_applies(problem, args):
+                objective = solution.solver.objective
+                rows.append(measure_headroom(problem, solution.plan, objective, args))
+                print(format_headroom(rows[-1]), flush=True)
     except KeyboardInterrupt:
         print("interrupted: the results so far follow", flush=True)
     return rows
@@ -170,12 +297,12 @@ def run_serial(problems, args, start: float) -> list[Row]:
 
 def solve_task(data: dict, source: str) -> tuple[str, object]:
     """The plan's solve in a worker, as in :func:`run_serial` (in the worker's own process, so
-    that its warm caches serve the next plan): its status and its plan (or None)."""
+    that its warm caches serve the next plan): its status, its plan (or None) and objective."""
     from cpopt.pipeline import solve
     from cpopt.problem import parse_problem
 
     solution = solve(parse_problem(data, source))
-    return solution.status, solution.plan if solution.ok else None
+    return solution.status, solution.plan if solution.ok else None, solution.solver.objective
 
 
 def measure_task(data: dict, source: str, plan, name: str, args) -> Row:
@@ -185,9 +312,9 @@ def measure_task(data: dict, source: str, plan, name: str, args) -> Row:
     return measure(parse_problem(data, source), plan, name, args)
 
 
-def run_distributed(problems, args, start: float) -> list[Row]:
+def run_distributed(problems, args, start: float) -> list:
     """The same work as :func:`run_serial` as Dask tasks (see the module docstring); rows in
-    the serial order, printed as they complete."""
+    the serial order, printed as they complete (headroom rows after the others)."""
     from dask.distributed import as_completed
 
     from cpopt.safe_yaml import read_yaml
@@ -198,6 +325,7 @@ def run_distributed(problems, args, start: float) -> list[Row]:
         (p.name, c): i for i, (p, c) in enumerate((p, c) for p in problems for c in CONTROLLERS)
     }
     done: dict[int, Row] = {}
+    headroom: dict[str, HeadroomRow] = {}
     with connect(args.workers, args.scheduler) as client:
         work, solving = as_completed(), {}
         for p in problems:
@@ -211,7 +339,11 @@ def run_distributed(problems, args, start: float) -> list[Row]:
                     done[order[(result.plan, result.controller)]] = result
                     print(format_row(result), flush=True)
                     continue
-                problem, (status, plan) = solving.pop(future.key), result
+                if isinstance(result, HeadroomRow):
+                    headroom[result.plan] = result
+                    print(format_headroom(result), flush=True)
+                    continue
+                problem, (status, plan, objective) = solving.pop(future.key), result
                 if plan is None:
                     print(f"{problem.name}: not solved ({status}), skipped", flush=True)
                 elif args.time_limit and time.perf_counter() - start > args.time_limit:
@@ -220,9 +352,14 @@ def run_distributed(problems, args, start: float) -> list[Row]:
                     for name in CONTROLLERS:
                         work.add(client.submit(measure_task, data[problem.name], problem.source,
                                                plan, name, args, pure=False))  # fmt: skip
+                    if headroom_applies(problem, args):
+                        work.add(client.submit(headroom_task, data[problem.name], problem.source,
+                                               plan, objective, args, pure=False))  # fmt: skip
         except KeyboardInterrupt:
             print("interrupted: the results so far follow", flush=True)
-    return [done[i] for i in sorted(done)]
+    return [done[i] for i in sorted(done)] + [
+        headroom[p.name] for p in problems if p.name in headroom
+    ]
 
 
 def main(argv=None) -> int:
@@ -241,7 +378,15 @@ def main(argv=None) -> int:
         "--workers", type=int, help="run on a local Dask cluster of N single-threaded workers"
     )
     parser.add_argument("--scheduler", help="run on the Dask cluster at ADDRESS (tcp://host:8786)")
+    parser.add_argument(
+        "--headroom",
+        type=float,
+        default=HEADROOM,
+        help=f"torque headroom h of the HEADROOM lines, 0 <= h < 1 ({HEADROOM}; 0: none)",
+    )
     args = parser.parse_args(argv)
+    if not 0 <= args.headroom < 1:
+        parser.error(f"--headroom {args.headroom:g}: give a fraction 0 <= h < 1")
     if args.quick:
         args.plans, args.trials, args.steps = args.plans or QUICK_PLANS, 5, 3
     if args.workers is not None and (args.workers < 1 or args.scheduler):
@@ -249,10 +394,19 @@ def main(argv=None) -> int:
     start = time.perf_counter()
     problems = _problems(args.plans)
     distributed = args.workers is not None or args.scheduler is not None
-    rows = (run_distributed if distributed else run_serial)(problems, args, start)
+    measured = (run_distributed if distributed else run_serial)(problems, args, start)
+    rows = [r for r in measured if isinstance(r, Row)]
+    headroom = [r for r in measured if isinstance(r, HeadroomRow)]
     print(f"\n{HEADER}")
     for r in rows:
         print(format_row(r))
+    if headroom:
+        print(
+            f"\nheadroom: the plans with headroom, tracked with {HEADROOM_CONTROLLER} on the h = 0 "
+            "plans' benchmark plants"
+        )
+        for r in headroom:
+            print(format_headroom(r))
     print(
         f"\nsuccess: CP within 2 cm and theta within 5 deg of the goal at T, joint velocities "
         f"within 0.25 of the goal's, no divergence; {args.trials} Monte Carlo trials, "
@@ -260,6 +414,8 @@ def main(argv=None) -> int:
     )
     for r in rows:
         print(f"ROBUST {r.plan} {r.controller} sweep={r.sweep:.3f} monte_carlo={r.monte_carlo:.3f}")
+    for r in headroom:
+        print(headroom_line(r))
     return 0
 
 

@@ -29,6 +29,11 @@ class Limit:
         How messages name it, e.g. ``|tau1| <= 120``.
     magnitude : bool
         True for a limit on |value| (torques, velocities), False for a range (positions).
+    headroom : float
+        For a torque limit planned with ``optimizer.limits.torque_headroom``: the fraction h of
+        the motor's limit left to feedback; ``lower`` and ``upper`` are then (1 - h) times it.
+    motor : float or None
+        That motor's full limit [N m or N] (None: ``upper``).
     """
 
     quantity: str
@@ -37,6 +42,14 @@ class Limit:
     upper: float
     label: str
     magnitude: bool
+    headroom: float = 0.0
+    motor: float | None = None
+
+    @property
+    def rated(self) -> float:
+        """The full limit: the motor's torque of a limit planned with headroom, the upper bound
+        itself otherwise."""
+        return self.upper if self.motor is None else self.motor
 
     def bounds(self, safety: float = 0.0) -> tuple[float, float]:
         """The bounds; a magnitude limit is tightened by the relative ``safety`` margin (a
@@ -50,18 +63,30 @@ class Limit:
         return np.maximum(self.lower - values, values - self.upper)
 
 
+def torque_headroom(spec) -> tuple[float, float]:
+    """The headroom h of each actuated joint from an ``optimizer.limits`` block: a single
+    value applies to every joint with a torque limit (0 on the others), a pair per joint."""
+    h = spec.torque_headroom
+    if isinstance(h, list | tuple):
+        return float(h[0]), float(h[1])
+    return tuple(float(h) if tmax is not None else 0.0 for tmax in spec.torque)
+
+
 def arm_limits(spec, arm: Arm) -> tuple[Limit, ...]:
-    """The limits of an ``optimizer.limits`` block (a ``LimitsSpec``) in SI units.
+    """The limits of an ``optimizer.limits`` block (a ``LimitsSpec``) in SI units; a torque
+    limit with headroom h is the plan's, (1 - h) times the motor's.
 
     Order: torques, joint positions, joint velocities (the order of the NLP's constraints).
     """
     revolute = arm.revolute
     out = []
-    for i, tmax in enumerate(spec.torque):
+    for i, (tmax, h) in enumerate(zip(spec.torque, torque_headroom(spec), strict=True)):
         if tmax is not None:
-            out.append(
-                Limit("tau", i, -float(tmax), float(tmax), f"|tau{i + 1}| <= {tmax:g}", True)
-            )
+            bound = float(tmax) * (1 - h)
+            label = f"|tau{i + 1}| <= {tmax:g}"
+            if h:
+                label = f"|tau{i + 1}| <= {bound:g} ({tmax:g} less {100 * h:g} % headroom)"
+            out.append(Limit("tau", i, -bound, bound, label, True, h, float(tmax)))
     for i, pair in enumerate(spec.joint_position or ()):
         if pair is not None:
             lo, hi = np.radians(pair) if revolute[i] else pair
@@ -71,6 +96,16 @@ def arm_limits(spec, arm: Arm) -> tuple[Limit, ...]:
             vm = float(np.radians(vmax) if revolute[i] else vmax)
             out.append(Limit("qd", i, -vm, vm, f"|q{i + 1}dot| within limits", True))
     return tuple(out)
+
+
+def rated_torques(limits: tuple[Limit, ...]) -> tuple[tuple, tuple[float, float]]:
+    """The motors' full torque limits (None where there is none) [N m or N] and the headroom
+    of each actuated joint, from a problem's limits."""
+    rated, headroom = [None, None], [0.0, 0.0]
+    for limit in limits:
+        if limit.quantity == "tau":
+            rated[limit.joint], headroom[limit.joint] = limit.rated, limit.headroom
+    return tuple(rated), tuple(headroom)
 
 
 def sampled(limit: Limit, traj) -> np.ndarray:
@@ -122,4 +157,13 @@ def violations(limits: tuple[Limit, ...], traj, rtol: float = VIOLATION_RTOL) ->
     return out
 
 
-__all__ = ["VIOLATION_RTOL", "Limit", "Violation", "arm_limits", "sampled", "violations"]
+__all__ = [
+    "VIOLATION_RTOL",
+    "Limit",
+    "Violation",
+    "arm_limits",
+    "rated_torques",
+    "sampled",
+    "torque_headroom",
+    "violations",
+]

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 from . import progress
 from .budget import Budget, TimeLimitExceeded, enforced
 from .kinematics import ReachError
-from .limits import Limit, violations
+from .limits import Limit, rated_torques, violations
 from .plan import CPPlan, SingularPlanError, closed_form
 from .problem import Problem
 from .results import Solution
@@ -114,6 +114,13 @@ class Checks:
         return cls(v.samples, tuple(v.poles), problem.limits)
 
 
+def with_limits(measured, limits: tuple[Limit, ...]):
+    """Metrics with the motors' torque limits and the plan's headroom (``torque_limit``,
+    ``torque_headroom``) of the arm's limits."""
+    rated, headroom = rated_torques(limits)
+    return replace(measured, torque_limit=rated, torque_headroom=headroom)
+
+
 def limit_status(limits, traj, status: str, message: str) -> tuple[str, str]:
     """``limits_violated`` and a message naming each limit and time, for a solved plan that
     leaves a limit; otherwise the status and message as they were."""
@@ -131,7 +138,7 @@ def _evaluate(plan, name, solver, status, message, partial, checks: Checks) -> S
         return Solution(
             name, "unreachable", plan.planner, plan=plan, solver=solver, message=str(err)
         )
-    measured = metrics(plan, traj)
+    measured = with_limits(metrics(plan, traj), checks.limits)
     partial.reached("verifying by simulation", trajectory=traj, metrics=measured)
     checked = verify(plan, measured.max_passive_residual, checks.poles)
     if status == "solved" and not checked.passed():
@@ -196,7 +203,7 @@ def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
         "collocation",
         plan=plan,
         trajectory=traj,
-        metrics=joint_metrics(plan, traj),
+        metrics=with_limits(joint_metrics(plan, traj), problem.limits),
         verification=checked,
         solver=result.solver,
         message=message,

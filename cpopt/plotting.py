@@ -91,7 +91,9 @@ def plot_torques(solution: Solution, ax=None, limits=None):
     ax : matplotlib.axes.Axes, optional
         Where to draw (a new figure otherwise).
     limits : sequence of float or None, optional
-        |tau1|, |tau2| limits [N m or N] (``optimizer.limits.torque``), drawn as red lines.
+        |tau1|, |tau2| limits [N m or N] (``optimizer.limits.torque``), drawn as red lines;
+        where the plan kept a headroom h (``metrics.torque_headroom``), its bound (1 - h) times
+        the limit is drawn thin and dotted.
     """
     traj = solution.trajectory
     fig, (a,) = _axes(ax, 1, size=(6, 3.2))
@@ -103,6 +105,11 @@ def plot_torques(solution: Solution, ax=None, limits=None):
         if tmax is not None:
             a.axhline(tmax, color="r", ls=styles[i], lw=0.9, label=f"|tau{i + 1}| limit")
             a.axhline(-tmax, color="r", ls=styles[i], lw=0.9)
+            h = solution.metrics.torque_headroom[i] if solution.metrics is not None else 0.0
+            if h:
+                bound = (1 - h) * tmax
+                a.axhline(bound, color="r", ls=":", lw=0.7, label=f"tau{i + 1} plan bound")
+                a.axhline(-bound, color="r", ls=":", lw=0.7)
     a.set_xlabel("t [s]")
     a.set_ylabel(label)
     a.set_title(f"{solution.name}: torques")

@@ -178,6 +178,11 @@ class Metrics:
     gamma_sign_changes : times where gamma changes sign [s]: a flat plan's switches (a xi
         reset steps gamma across zero, never through it), a collocation plan's crossings
         through zero, read between its knots (its ``min_abs_gamma`` is then 0)
+    torque_limit : (limit of tau1 or None, limit of tau2 or None): the motors' full torque
+        limits (``optimizer.limits.torque``) [N m or N]
+    torque_headroom : (h1, h2) the fractions of those limits the plan was asked to leave to
+        feedback (``optimizer.limits.torque_headroom``); the plan keeps |tau_i| <= (1 - h_i)
+        times the limit
     """
 
     torque_sq_integral: float
@@ -192,6 +197,17 @@ class Metrics:
     torque_jumps: tuple = ()
     reset_torque_jump: float = 0.0
     gamma_sign_changes: tuple[float, ...] = ()
+    torque_limit: tuple = (None, None)
+    torque_headroom: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def torque_usage(self) -> tuple:
+        """Peak |tau_i| as a fraction of the motor's limit (None without a limit): 1 - usage
+        is the headroom the plan actually leaves."""
+        return tuple(
+            None if lim is None else peak / lim
+            for peak, lim in zip(self.peak_torque, self.torque_limit, strict=True)
+        )
 
     def as_dict(self) -> dict:
         """The metrics as a plain dict (JSON-ready)."""
@@ -206,6 +222,9 @@ class Metrics:
             "reset_torque_jump": self.reset_torque_jump,
             "torque_jumps": dict(self.torque_jumps),
             "gamma_sign_changes": list(self.gamma_sign_changes),
+            "torque_limit": list(self.torque_limit),
+            "torque_headroom": list(self.torque_headroom),
+            "torque_usage": list(self.torque_usage),
         }
 
 

@@ -368,3 +368,27 @@ def test_a_diverging_run_stops_and_says_when():
     assert out.t[-1] == out.diverged_at and out.tau.shape == (out.t.size - 1, 2)
     assert out.cp_error[-1] > 1.0 and not out.success
     assert out.summary()["diverged_at"] == out.diverged_at
+
+
+@pytest.mark.slow
+def test_benchmark_prints_a_headroom_line_per_optimized_plan():
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "robustness.py"), "--quick",
+         "--plans", "paper_transfer,swing_up_torque_limited", "--headroom", "0.2"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = [ln for ln in done.stdout.splitlines() if ln.startswith("HEADROOM ")]
+    assert len(lines) == 1  # the closed-form paper_transfer has none
+    match = re.fullmatch(
+        r"HEADROOM swing_up_torque_limited h=0.2 cost=(\d\.\d{3}) duration=(\d\.\d{3}) "
+        r"monte_carlo=([01]\.\d{3})",
+        lines[0],
+    )
+    assert match, lines[0]
+    # 20 % of 120 N m and 50 N m left to feedback: 13.5 % more torque, the same duration
+    assert float(match[1]) == pytest.approx(1.135, abs=0.003)
+    assert match[2] == "1.000"
+    assert "ROBUST swing_up_torque_limited tvlqr " in done.stdout

@@ -17,8 +17,10 @@ from pydantic import (
     Discriminator,
     Field,
     Tag,
+    ValidationError,
     field_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from ..objectives import OBJECTIVES
 from ..tracking.dfl import DEFAULT_POLES
@@ -118,13 +120,27 @@ class ClosedFormSpec(_Spec):
 class LimitsSpec(_Spec):
     """Limits a real arm has (each entry null for none).
 
-    ``torque`` [N m or N] for joints 1, 2; ``joint_position`` pairs [deg or m] and
+    ``torque`` [N m or N] for joints 1, 2; ``torque_headroom`` the fraction h of each torque
+    limit the plan leaves to feedback (one value for every limited joint, or a pair; the plan
+    keeps |tau_i| <= (1 - h_i) torque_i); ``joint_position`` pairs [deg or m] and
     ``joint_velocity`` [deg/s or m/s] for joints 1..3.
     """
 
     torque: Pair(Positive | None) = [None, None]
+    torque_headroom: Number | Pair(Number) = 0.0
     joint_position: Triple(Pair(Number) | None) | None = None
     joint_velocity: Triple(Positive | None) | None = None
+
+    @field_validator("torque_headroom", mode="wrap")
+    @classmethod
+    def _one_or_two_numbers(cls, value, handler):
+        # one message for the union, not one per member named by its type
+        try:
+            return handler(value)
+        except ValidationError:
+            raise PydanticCustomError(
+                "headroom", "expected a number h or a pair [h1, h2] (fractions 0 <= h < 1)"
+            ) from None
 
 
 DEFAULT_MAX_TIME = 300.0

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..dynamics import holding_torque
 from ..kinematics import ReachError, inverse_derivatives, inverse_position
+from ..limits import torque_headroom
 from ..nodes import free_value_names
 from ..objectives import COLLOCATION_OBJECTIVES, LEAST_SQUARES, LINEAR, weights
 from ..plan import GAMMA_ZERO, Node
@@ -212,6 +213,7 @@ def _check_limits(spec, arm: Arm, nodes, joints, source: str) -> None:
                 f"optimizer.limits.joint_position[{i}]",
                 f"lower bound {pair[0]:g} exceeds upper bound {pair[1]:g} (give [lower, upper])",
             )
+    headroom = _check_headroom(lim, source)
     if all(t is None for t in lim.torque):
         return
     units = ["N m" if r else "N" for r in arm.revolute]
@@ -225,14 +227,41 @@ def _check_limits(spec, arm: Arm, nodes, joints, source: str) -> None:
             continue
         tau = holding_torque(arm, joints[index])
         for i, tmax in enumerate(lim.torque):
-            if tmax is not None and abs(tau[i]) > tmax:
-                raise ProblemError(
-                    source,
-                    f"optimizer.limits.torque[{i}]",
-                    f"|tau{i + 1}| <= {tmax:g} {units[i]} cannot even hold the arm at rest at "
-                    f"motion.{name}: the static holding torque there is {tau[i]:.4g} "
-                    f"{units[i]}",
-                )
+            if tmax is None or abs(tau[i]) <= tmax * (1 - headroom[i]):
+                continue
+            bound = f"|tau{i + 1}| <= {tmax:g} {units[i]}"
+            if abs(tau[i]) <= tmax:  # only the headroom is in the way
+                bound = f"{bound} less {100 * headroom[i]:g} % headroom"
+            raise ProblemError(
+                source,
+                f"optimizer.limits.torque{'_headroom' if abs(tau[i]) <= tmax else ''}[{i}]",
+                f"{bound} cannot even hold the arm at rest at motion.{name}: the static "
+                f"holding torque there is {tau[i]:.4g} {units[i]}",
+            )
+
+
+def _check_headroom(lim, source: str) -> tuple[float, float]:
+    """0 <= h < 1 for each joint, and a headroom only where there is a torque limit to take
+    it from; the headroom per joint."""
+    pair = isinstance(lim.torque_headroom, list)
+    for i, h in enumerate(lim.torque_headroom if pair else [lim.torque_headroom]):
+        key = f"optimizer.limits.torque_headroom{f'[{i}]' if pair else ''}"
+        if not 0 <= h < 1:
+            raise ProblemError(
+                source,
+                key,
+                f"{h:g} is not a fraction in [0, 1): give the share of each torque limit the "
+                "plan leaves to feedback (0.2 keeps |tau_i| <= 0.8 torque_i)",
+            )
+        if h > 0 and (lim.torque[i] is None if pair else all(t is None for t in lim.torque)):
+            which = f"optimizer.limits.torque[{i}] is" if pair else "no torque limit is"
+            raise ProblemError(
+                source,
+                key,
+                f"a headroom of {h:g} is a fraction of a torque limit, but {which} given: "
+                "set the limit (the motor's torque) or a headroom of 0",
+            )
+    return torque_headroom(lim)
 
 
 def _file_value(spec: ProblemSpec, name: str) -> float:
