@@ -74,17 +74,17 @@ def _hidden_plant(solution, heavier: float):
 def test_slowing_down_keeps_a_swing_up_that_tvlqr_loses(torque_limited):
     """500 Hz, links 1 and 2 20 % heavier, motors at 120 and 50 N m, friction, noise (seed 0):
     TVLQR saturates 15 % of the time and ends with a joint at 0.267 rad/s (tolerance 0.25);
-    tvlqr_timescaled falls 1.25 ms behind by t = 1 s, catches up to 0.26 ms by 1.4 s, and
-    reaches the goal 6 ms after T with the joints at 0.23 rad/s."""
+    tvlqr_timescaled falls 0.6 ms behind by t = 1 s, has caught up by 1.4 s, falls behind again
+    on the final swing and reaches the goal 6 ms after T with the joints at 0.19 rad/s."""
     ref, plant, noise = _hidden_plant(torque_limited, 0.2)
     lqr = track(None, make_controller("tvlqr", ref), plant, noise)
     scaled = track(torque_limited.plan, "tvlqr_timescaled", plant, noise, rate_hz=500.0)
     assert not lqr.success and lqr.saturated.mean() == pytest.approx(0.149, abs=0.02)
     assert lqr.final.joint_velocity[0] == pytest.approx(0.267, abs=0.01)
-    assert scaled.success and scaled.final.joint_velocity[0] == pytest.approx(0.23, abs=0.02)
+    assert scaled.success and scaled.final.joint_velocity[0] == pytest.approx(0.19, abs=0.02)
     lag = scaled.t - scaled.progress
     at = {t: lag[np.searchsorted(scaled.t, t)] for t in (1.0, 1.4)}
-    assert at[1.0] == pytest.approx(1.25e-3, abs=3e-4)
+    assert at[1.0] == pytest.approx(0.6e-3, abs=2e-4)
     assert at[1.4] < 0.5 * at[1.0]  # caught up
     assert scaled.delay == pytest.approx(0.006, abs=0.0021)
     assert scaled.t[-1] == pytest.approx(ref.t[-1] + scaled.delay)
