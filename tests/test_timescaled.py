@@ -9,7 +9,6 @@ import yaml
 
 import cpopt
 from cpopt.cli import main
-from cpopt.plan import closed_form
 from cpopt.problem import ProblemError, load_problem
 from cpopt.tracking import Plant, track
 from cpopt.tracking.reference import reference
@@ -22,10 +21,9 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
-def transfer():
-    """The paper's T = 1 s transfer (closed form) on a 1 kHz grid."""
-    problem = load_problem(ROOT / "problems" / "paper_transfer.yaml")
-    plan = closed_form(problem.arm, problem.nodes)
+def transfer(paper_solutions):
+    """The paper's T = 1 s transfer (closed form) and its 1 kHz reference."""
+    plan = paper_solutions["paper_transfer"].plan
     return plan, reference(plan, 1000.0)
 
 
@@ -106,7 +104,7 @@ def test_a_run_that_does_not_arrive_in_its_extra_time_fails(torque_limited):
 def test_compiled_batches_run_as_single_runs(torque_limited):
     """The law's interpolant compiles with the period function: a compiled batch of three
     plants gives each run's arrival and end state as the interpreted single runs."""
-    ref, plant, noise = _hidden_plant(torque_limited, 0.0)
+    ref, plant, _ = _hidden_plant(torque_limited, 0.0)
     controller = make_controller("tvlqr_timescaled", ref, torque_limit=plant.torque_limit)
     rows = []
     for e in (0.0, 0.2, 0.25):
