@@ -192,4 +192,9 @@ class TimeScaledTVLQR(TVLQRController):
                     for new, old in zip((tau, v, score), best, strict=True)
                 )
         tau, v = best[0], best[1]
-        return ca.Function(self.name, [k, q, qd, c], [tau, ca.vertcat(ca.fmin(s + v, n), v)])
+        # at T a reference within half a period of the goal has arrived: a smaller lag would
+        # otherwise postpone the judgement by a whole period, on a goal the arm may pass through
+        # fast (measured: 0.1 less Monte Carlo success on paper_swing_up)
+        on_time = ca.logic_and(ca.fabs(k + 1 - n) < 0.5, n - (s + v) < 0.5)  # k + 1 == n
+        s_next = ca.if_else(on_time, n, ca.fmin(s + v, n))
+        return ca.Function(self.name, [k, q, qd, c], [tau, ca.vertcat(s_next, v)])
