@@ -17,7 +17,9 @@ that keeps s at or behind the clock, :data:`RATE_MAX`], and keeps the one closes
 whose torque fits the motors' limits, else the one that exceeds them least (a joint on an arc
 where the plan itself rides its limit, :data:`RIDING`, does not count). The target is 1
 (the plan's pace) plus a catch-up of :data:`CATCH_UP` times the lag t - s, faded out over the
-plan's last :data:`CATCH_UP_FADE` seconds so that the arm arrives at the plan's pace.
+plan's last :data:`CATCH_UP_FADE` seconds so that the arm arrives at the plan's pace. A run is
+judged when s reaches the end of the plan (a reference within half a period of it at T counts
+as arriving at T), at most ``max_delay`` of the plan's duration after T.
 
 A limit the plan's own feed-forward exceeds (a plan is limited at the optimizer's samples and
 may pass a limit between them) does not count: the excess is measured beyond the larger of the
