@@ -148,7 +148,8 @@ def track(
         ``torque_limit`` [N m or N] (default: the problem's ``optimizer.limits.torque``).
         Default: the model arm.
     controller : str
-        ``tvlqr`` or ``dfl``.
+        ``tvlqr``, ``tvlqr_timescaled`` (slows the reference to fit the plant's torque limits;
+        the run may end after T) or ``dfl``.
     **tracking
         The block's other keys: ``rate_hz``, ``Q``, ``R``, ``Qf``, ``poles``, ``noise``
         (see docs/problems.md).

@@ -415,7 +415,9 @@ def test_robustness_benchmark_on_two_workers_gives_the_serial_figures():
     )
     assert serial.returncode == dask.returncode == 0, dask.stderr[-2000:]
     assert _table(dask.stdout) == _table(serial.stdout)
-    assert sum(line.startswith("ROBUST paper_transfer ") for line in _table(dask.stdout)) == 2
+    assert (
+        sum(line.startswith("ROBUST paper_transfer ") for line in _table(dask.stdout)) == 3
+    )  # tvlqr, tvlqr_timescaled, dfl
 
 
 def test_dask_is_imported_only_by_the_sweep():

@@ -316,9 +316,10 @@ def test_solve_writes_tracking_outputs(tmp_path, capsys):
     assert set(doc) == {
         "controller", "rate_hz", "max_cp_error", "final_state_error", "final_cp_error",
         "final_theta_error_deg", "final_joint_velocity_error", "peak_torque",
-        "saturated_fraction", "diverged_at", "success", "tolerance",
+        "saturated_fraction", "diverged_at", "delay", "max_lag", "success", "tolerance",
     }  # fmt: skip
     assert doc["controller"] == "tvlqr" and doc["rate_hz"] == 500 and doc["success"] is True
+    assert abs(doc["delay"]) < 1e-12 and abs(doc["max_lag"]) < 1e-12  # at the plan's pace
     assert doc["tolerance"] == {"cp": 0.02, "theta_deg": 5.0, "joint_velocity": 0.25}
     assert 1e-3 < doc["max_cp_error"] < 0.02 and doc["diverged_at"] is None
     lines = (out / "tracking.csv").read_text().splitlines()
@@ -346,12 +347,15 @@ def test_quick_benchmark_prints_robust_lines():
     lines = [ln for ln in done.stdout.splitlines() if ln.startswith("ROBUST ")]
     assert [ln.split()[1:3] for ln in lines] == [
         ["paper_transfer", "tvlqr"],
+        ["paper_transfer", "tvlqr_timescaled"],
         ["paper_transfer", "dfl"],
     ]
     rates = {}
     for line in lines:
         match = re.fullmatch(
-            r"ROBUST \w+ (tvlqr|dfl) sweep=([01]\.\d{3}) monte_carlo=([01]\.\d{3})", line
+            r"ROBUST \w+ (tvlqr|tvlqr_timescaled|dfl) sweep=([01]\.\d{3}) "
+            r"monte_carlo=([01]\.\d{3})",
+            line,
         )
         assert match, line
         rates[match[1]] = float(match[2]), float(match[3])

@@ -304,7 +304,7 @@ class NoiseSpec(_Spec):
 class TrackingSpec(_Spec):
     """Tracking of the plan by a controller on a realistic plant (see docs/problems.md)."""
 
-    controller: Literal["tvlqr", "dfl"] = "tvlqr"
+    controller: Literal["tvlqr", "tvlqr_timescaled", "dfl"] = "tvlqr"
     rate_hz: Annotated[float, Field(gt=0, le=100000, allow_inf_nan=False)] = 1000.0
     Q: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_Q)
     R: Pair(Positive) | None = None  # absent: relative to the plan's peak torques

@@ -1,8 +1,9 @@
 """Tracking a plan on a realistic arm: controllers, plant, sampled-data simulation, outcome.
 
 * :mod:`~cpopt.tracking.reference`: the plan on the control grid (flat or collocation plans);
-* :mod:`~cpopt.tracking.dfl`, :mod:`~cpopt.tracking.tvlqr`: the two controllers, one
-  interface (:class:`~cpopt.tracking.controller.Controller`, ``torque(t, q, qd) -> tau``);
+* :mod:`~cpopt.tracking.dfl`, :mod:`~cpopt.tracking.tvlqr`,
+  :mod:`~cpopt.tracking.timescaled`: the controllers, one interface
+  (:class:`~cpopt.tracking.controller.Controller`, ``torque(t, q, qd) -> tau``);
 * :mod:`~cpopt.tracking.plant`: the simulated arm (its own parameters, friction, saturation);
 * :mod:`~cpopt.tracking.simulation`: the sampled-data loop, many runs in one mapped call;
 * :mod:`~cpopt.tracking.outcome`: errors, success criterion, ``tracking.csv`` rows;

@@ -29,7 +29,9 @@ accelerations there, the torques held over it after saturation)."""
 
 @dataclass(frozen=True)
 class Tolerance:
-    """When a tracking run counts as a success (at the end of the plan, no divergence).
+    """When a tracking run counts as a success: judged when the controller's progress reaches
+    the end of the plan (at T, or later for a controller that slowed its reference, within its
+    bounded extra time), and no divergence.
 
     Attributes
     ----------
@@ -112,11 +114,12 @@ class TrackingOutcome:
     Attributes
     ----------
     controller : str
-        ``tvlqr`` or ``dfl``.
+        ``tvlqr``, ``tvlqr_timescaled`` or ``dfl``.
     rate_hz : float
         Control rate [Hz].
     t : numpy.ndarray
-        Control instants reached (m + 1,) [s] (m < n when the run diverged).
+        Control instants reached (m + 1,) [s]: up to T (m = n), earlier when the run diverged,
+        later when the controller slowed its reference.
     x : numpy.ndarray
         True plant joint states at the instants (m + 1, 6).
     qdd : numpy.ndarray
@@ -126,13 +129,20 @@ class TrackingOutcome:
     saturated : numpy.ndarray
         Whether a torque was clipped in each period (m,).
     cp, cp_ref : numpy.ndarray
-        CP of the plant (model kinematics) and of the plan at the instants (m + 1, 2) [m].
+        CP of the plant (model kinematics) and of the plan at the instants the controller
+        tracked (m + 1, 2) [m].
     diverged_at : float or None
         When the run was stopped as diverged [s].
     final : FinalErrors
         Errors at the last instant against the goal.
     tolerance : Tolerance
         The success criterion.
+    progress : numpy.ndarray or None
+        The plan's instant the controller tracked at each instant (m + 1,) [s]: ``t`` itself
+        for a controller at the plan's pace (None: the same).
+    arrived : bool
+        Whether the controller's progress reached the end of the plan (a run that diverged or
+        ran out of extra time did not).
     """
 
     controller: str
@@ -147,6 +157,19 @@ class TrackingOutcome:
     diverged_at: float | None
     final: FinalErrors
     tolerance: Tolerance = field(default_factory=Tolerance)
+    progress: np.ndarray | None = None
+    arrived: bool = True
+
+    @property
+    def delay(self) -> float:
+        """How much later than the plan the run was judged [s]: t at the last instant less the
+        plan's instant tracked then (0 for a controller at the plan's pace)."""
+        return 0.0 if self.progress is None else float(self.t[-1] - self.progress[-1])
+
+    @property
+    def max_lag(self) -> float:
+        """Largest lag of the plan's instant tracked behind the clock, max(t - s(t)) [s]."""
+        return 0.0 if self.progress is None else float(np.max(self.t - self.progress))
 
     @property
     def cp_error(self) -> np.ndarray:
@@ -160,8 +183,8 @@ class TrackingOutcome:
 
     @property
     def success(self) -> bool:
-        """True when the run ends within the tolerance without diverging."""
-        diverged = np.array([self.diverged_at is not None])
+        """True when the run arrives within the tolerance without diverging."""
+        diverged = np.array([self.diverged_at is not None or not self.arrived])
         return bool(self.final.success(self.tolerance, diverged)[0])
 
     def summary(self) -> dict:
@@ -177,6 +200,8 @@ class TrackingOutcome:
             "peak_torque": np.abs(self.tau).max(axis=0).tolist(),
             "saturated_fraction": float(self.saturated.mean()) if self.saturated.size else 0.0,
             "diverged_at": self.diverged_at,
+            "delay": self.delay,
+            "max_lag": self.max_lag,
             "success": self.success,
             "tolerance": self.tolerance.as_dict(),
         }

@@ -11,7 +11,8 @@ with a 50 % margin). Around it,
 * **Monte Carlo** trials draw every one of those parameters uniformly within
   +-``monte_carlo_range``, each trial with its own noise seed.
 
-A run succeeds by :class:`~cpopt.tracking.outcome.Tolerance`.
+A run succeeds by :class:`~cpopt.tracking.outcome.Tolerance`, judged when its controller's
+progress reaches the end of the plan (T, or later for ``tvlqr_timescaled``).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 from .controller import Controller
 from .outcome import Tolerance, final_errors
 from .plant import Plant
+from .reference import Reference
 from .simulation import Noise, simulate_batch
 
 NOISE_POSITION = 1e-4
@@ -40,17 +42,17 @@ VARIED = 18
 """The parameters varied: the 12 link parameters and the 6 friction coefficients."""
 
 
-def benchmark_plant(controller: Controller, torque_limit=None) -> tuple[Plant, Noise]:
+def benchmark_plant(controller: Controller | Reference, torque_limit=None) -> tuple[Plant, Noise]:
     """The benchmark plant and noise of a controller's plan (see the module docstring).
 
     Parameters
     ----------
-    controller : Controller
+    controller : Controller or Reference
         Gives the plan (its reference) and the model.
     torque_limit : sequence of (float or None), optional
         The problem's torque limits [N m or N].
     """
-    ref = controller.reference
+    ref = controller if isinstance(controller, Reference) else controller.reference
     arm = ref.arm
     peak_tau = np.abs(ref.tau).max(axis=0)
     link3 = arm.links[2]
@@ -88,12 +90,14 @@ def monte_carlo_parameters(nominal: np.ndarray, trials: int, span: float = 0.1, 
 
 @dataclass(frozen=True)
 class Trials:
-    """Outcome of a set of runs: success per run, errors, divergence (one entry per run)."""
+    """Outcome of a set of runs: success per run, errors, divergence, and how much later than
+    the plan each run was judged [s] (NaN where it did not arrive) (one entry per run)."""
 
     success: np.ndarray
     max_cp_error: np.ndarray
     final_cp_error: np.ndarray
     diverged: np.ndarray
+    delay: np.ndarray
 
     @property
     def rate(self) -> float:
@@ -113,10 +117,11 @@ def run_trials(
     ref = controller.reference
     final = final_errors(ref.arm, ref.goal, batch.x_final)
     return Trials(
-        success=final.success(tolerance or Tolerance(), batch.diverged),
+        success=final.success(tolerance or Tolerance(), batch.diverged | ~batch.arrived),
         max_cp_error=batch.max_cp_error,
         final_cp_error=final.cp,
         diverged=batch.diverged,
+        delay=batch.arrival - ref.t[-1],
     )
 
 

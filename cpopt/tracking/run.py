@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..robot import Arm
 from .controller import Controller
 from .dfl import DEFAULT_POLES, DFLController, SingularTrackingError
@@ -11,9 +13,10 @@ from .outcome import Tolerance, TrackingOutcome, final_errors
 from .plant import Plant
 from .reference import Reference, reference
 from .simulation import Noise, simulate_batch
+from .timescaled import MAX_DELAY, TimeScaledTVLQR
 from .tvlqr import DEFAULT_Q, DEFAULT_QF, TVLQRController
 
-CONTROLLERS = ("tvlqr", "dfl")
+CONTROLLERS = ("tvlqr", "tvlqr_timescaled", "dfl")
 DEFAULT_RATE_HZ = 1000.0
 """Default control rate [Hz]."""
 
@@ -25,11 +28,17 @@ def make_controller(
     R=None,
     Qf=DEFAULT_QF,
     poles=DEFAULT_POLES,
+    torque_limit=None,
+    max_delay: float = MAX_DELAY,
 ) -> Controller:
     """A controller by name (``tvlqr`` uses Q, R, Qf, R None for the plan-relative default
-    :func:`~cpopt.tracking.tvlqr.relative_R`; ``dfl`` uses the poles)."""
+    :func:`~cpopt.tracking.tvlqr.relative_R`; ``tvlqr_timescaled`` those and the motors'
+    ``torque_limit`` [N m or N] and ``max_delay`` (a fraction of the plan's duration);
+    ``dfl`` uses the poles)."""
     if name == "tvlqr":
         return TVLQRController(ref, Q, R, Qf)
+    if name == "tvlqr_timescaled":
+        return TimeScaledTVLQR(ref, torque_limit, Q, R, Qf, max_delay)
     if name == "dfl":
         return DFLController(ref, poles)
     raise ValueError(f"controller must be one of {CONTROLLERS}, got {name!r}")
@@ -57,7 +66,9 @@ def track(
         The plan (its arm is the controller's model). Ignored when ``controller`` is a
         :class:`Controller`, which carries its own reference.
     controller : str or Controller
-        ``tvlqr`` or ``dfl``, or a controller built by :func:`make_controller`.
+        ``tvlqr``, ``tvlqr_timescaled`` or ``dfl``, or a controller built by
+        :func:`make_controller` (a ``tvlqr_timescaled`` built here fits the plant's torque
+        limits).
     plant : Plant, optional
         The simulated arm (default: the model, no friction, no saturation).
     noise : Noise, optional
@@ -67,27 +78,37 @@ def track(
     tolerance : Tolerance, optional
         Success criterion.
     **gains
-        ``Q``, ``R``, ``Qf`` or ``poles`` for :func:`make_controller`.
+        ``Q``, ``R``, ``Qf``, ``poles`` or ``max_delay`` for :func:`make_controller`.
+
+    A run lasts until the controller's progress reaches the end of the plan (at T, or later
+    for ``tvlqr_timescaled`` after slowing its reference; :attr:`TrackingOutcome.delay`) and
+    is judged there against the goal.
     """
     if isinstance(controller, str):
-        controller = make_controller(controller, reference(plan, rate_hz), **gains)
+        limit = plant.torque_limit if plant is not None else None
+        controller = make_controller(
+            controller, reference(plan, rate_hz), torque_limit=limit, **gains
+        )
     ref = controller.reference
     plant = plant or model_plant(ref.arm)
     batch = simulate_batch(controller, plant.parameters()[None, :], noise, log=True)
     log = batch.log
     m = log["tau"].shape[0]
     diverged = None if not batch.diverged[0] else float(batch.diverged_at[0])
+    progress = log["progress"]
     return TrackingOutcome(
         controller=controller.name,
         rate_hz=1.0 / ref.period,
-        t=ref.t[: m + 1],
+        t=batch.t[: m + 1],
         x=log["x"],
         qdd=log["qdd"],
         tau=log["tau"],
         saturated=log["saturated"],
         cp=log["cp"],
-        cp_ref=ref.cp[: m + 1, :, 0],
+        cp_ref=np.column_stack([np.interp(progress, ref.t, ref.cp[:, i, 0]) for i in (0, 1)]),
         diverged_at=diverged,
+        progress=progress,
+        arrived=bool(batch.arrived[0]),
         final=final_errors(ref.arm, ref.goal, log["x"][-1:]),
         tolerance=tolerance or Tolerance(),
     )

@@ -4,7 +4,11 @@ One CasADi function does a whole control period: add the measurement noise, eval
 controller's law, saturate and hold the torque, integrate the plant by RK4 substeps. It is
 accumulated over a chunk of periods (``mapaccum``) and mapped over runs that differ in their
 plant parameters and noise, so a batch of runs is one call per chunk. Between chunks, runs
-that diverged are stopped and dropped from the batch.
+that diverged are stopped and dropped from the batch, and so are runs that arrived: a run is
+judged at the first instant its controller's progress (:meth:`Controller.progress`) reaches the
+end of the plan, at T for a controller at the plan's pace, later for one that slowed its
+reference (at most :attr:`Controller.horizon` periods; a run that has not arrived by then is
+judged there and fails).
 """
 
 from __future__ import annotations
@@ -134,9 +138,15 @@ class Batch:
         Largest |torque| applied (N, 2) [N m or N].
     saturated_fraction : numpy.ndarray
         Fraction of the periods in which a torque was clipped (N,).
+    arrival : numpy.ndarray
+        When the run's progress reached the end of the plan (N,) [s]: T for a controller at the
+        plan's pace; NaN for a run that diverged or had not arrived at the end of the horizon.
+    max_lag : numpy.ndarray
+        Largest lag of the tracked plan instant behind the clock, t_k - s_k (N,) [s].
     log : dict or None
-        For a single run: ``x`` (n + 1, 6), ``qdd`` (n, 3), ``tau`` (n, 2), ``saturated``
-        (n,), ``cp`` (n + 1, 2), up to the last instant reached.
+        For a single run: ``x`` (m + 1, 6), ``qdd`` (m, 3), ``tau`` (m, 2), ``saturated``
+        (m,), ``cp`` (m + 1, 2), ``progress`` (m + 1,) (the plan's instant tracked [s]), up to
+        the last instant reached.
     """
 
     t: np.ndarray
@@ -145,12 +155,19 @@ class Batch:
     diverged_at: np.ndarray
     peak_torque: np.ndarray
     saturated_fraction: np.ndarray
+    arrival: np.ndarray
+    max_lag: np.ndarray
     log: dict | None = None
 
     @property
     def diverged(self) -> np.ndarray:
         """True for runs stopped as diverged (N,)."""
         return ~np.isnan(self.diverged_at)
+
+    @property
+    def arrived(self) -> np.ndarray:
+        """True for runs whose progress reached the end of the plan (N,)."""
+        return ~np.isnan(self.arrival)
 
 
 def _first_bad(X_next: np.ndarray, cp_err: np.ndarray) -> np.ndarray:
@@ -178,19 +195,32 @@ class _Totals:
     def __init__(self, runs: int) -> None:
         self.max_err = np.zeros(runs)
         self.diverged_at = np.full(runs, np.nan)
+        self.arrival = np.full(runs, np.nan)
+        self.max_lag = np.zeros(runs)
         self.peak = np.zeros((runs, 2))
         self.saturated = np.zeros(runs)
+        self.steps = np.zeros(runs, int)
 
-    def add(self, active, upto, bad, cp_err, tau, sat, t_after) -> None:
-        """Fold in one chunk: ``upto[a]`` periods of active run a count; t_after (length,)
-        are the instants that end the chunk's periods."""
+    def add(self, active, upto, bad, done, chunk: dict, t_after) -> None:
+        """Fold in one chunk: ``upto[a]`` periods of active run a count, ``bad[a]`` and
+        ``done[a]`` are the periods after which it diverged or arrived (-1: not); t_after
+        (length,) are the instants that end the chunk's periods."""
         for a, i in enumerate(active):
             m = upto[a]
-            self.max_err[i] = max(self.max_err[i], cp_err[a, :m].max())
-            self.peak[i] = np.maximum(self.peak[i], np.abs(tau[:, a, :m]).max(axis=1))
-            self.saturated[i] += sat[0, a, :m].sum()
+            self.max_err[i] = max(self.max_err[i], chunk["cp_err"][a, :m].max())
+            self.max_lag[i] = max(self.max_lag[i], chunk["lag"][a, :m].max())
+            self.peak[i] = np.maximum(self.peak[i], np.abs(chunk["tau"][:, a, :m]).max(axis=1))
+            self.saturated[i] += chunk["sat"][0, a, :m].sum()
+            self.steps[i] += m
             if bad[a] >= 0:
                 self.diverged_at[i] = t_after[bad[a]]
+            elif done[a] >= 0:
+                self.arrival[i] = t_after[done[a]]
+
+
+def _first(mask: np.ndarray) -> np.ndarray:
+    """Index of the first True of each row (A, L), -1 for none."""
+    return np.where(mask.any(axis=1), mask.argmax(axis=1), -1)
 
 
 def simulate_batch(
@@ -201,6 +231,9 @@ def simulate_batch(
     log: bool = False,
 ) -> Batch:
     """Run a controller on plants with the given parameters, from the plan's start state.
+
+    Each run lasts until its controller's progress reaches the end of the plan (see the module
+    docstring), until it diverges, or to the end of the controller's horizon.
 
     Parameters
     ----------
@@ -219,7 +252,7 @@ def simulate_batch(
     ref = controller.reference
     noise = noise or Noise()
     P = np.atleast_2d(np.asarray(parameters, float)).T
-    N, n = P.shape[1], ref.steps
+    N, horizon, t = P.shape[1], controller.horizon, controller.times
     step = step_function(controller, jit)
     schedule = controller.schedule()
     rngs = [np.random.default_rng([noise.seed, i]) for i in range(N)]
@@ -227,9 +260,9 @@ def simulate_batch(
     c = np.tile(controller.initial_state()[:, None], (1, N))
     active = np.arange(N)
     totals = _Totals(N)
-    logs: dict[str, list] = {k: [] for k in ("x", "qdd", "tau", "saturated", "cp")}
-    for k0 in range(0, n, CHUNK):
-        length, A = min(CHUNK, n - k0), active.size
+    logs: dict[str, list] = {k: [] for k in ("x", "qdd", "tau", "saturated", "cp", "progress")}
+    for k0 in range(0, horizon, CHUNK):
+        length, A = min(CHUNK, horizon - k0), active.size
         f = _batch_function(step, length, A)
         # per-period inputs run after run: each run's parameters repeated over its periods
         params = np.repeat(P[:, active], length, axis=1)
@@ -238,30 +271,50 @@ def simulate_batch(
         X_next, c_next, tau, qdd, cp, sat = (
             np.asarray(o).reshape(o.shape[0], A, length) for o in out
         )
-        cp_err = np.linalg.norm(cp - ref.cp[k0 : k0 + length, :, 0].T[:, None, :], axis=0)
+        k = np.arange(k0, k0 + length + 1)
+        c_all = np.concatenate([c[:, active, None], c_next], axis=2)  # (2, A, length + 1)
+        s = controller.progress(k, c_all)  # the plan's instant tracked, in periods
+        cp_err = np.linalg.norm(cp - _cp_at(ref, s[:, :-1]), axis=0)
         bad = _first_bad(X_next, cp_err)
-        upto = np.where(bad >= 0, bad + 1, length)
-        totals.add(active, upto, bad, cp_err, tau, sat, ref.t[k0 + 1 : k0 + length + 1])
+        done = _first(s[:, 1:] >= ref.steps - 1e-9)
+        stop = np.where(bad >= 0, bad, done)
+        upto = np.where(stop >= 0, stop + 1, length)
+        chunk = {"cp_err": cp_err, "lag": (k[:-1] - s[:, :-1]) * ref.period, "tau": tau,
+                 "sat": sat}  # fmt: skip
+        totals.add(active, upto, bad, done, chunk, t[k0 + 1 : k0 + length + 1])
         if log:
             _log_chunk(logs, X[:, active[0]], X_next[:, 0], (qdd, tau, sat, cp), upto[0])
-        X[:, active] = X_next[:, :, -1]
-        c[:, active] = c_next[:, :, -1]
-        active = active[bad < 0]
+            logs["progress"].append(ref.t[0] + s[0, : upto[0] + 1] * ref.period)
+        last = upto - 1
+        X[:, active] = X_next[:, np.arange(A), last]
+        c[:, active] = c_next[:, np.arange(A), last]
+        active = active[stop < 0]
         if active.size == 0:
             break
     ok = np.isnan(totals.diverged_at)
     end_err = np.linalg.norm(cp_points(ref.arm, X.T[:, :3]) - ref.cp[-1, :, 0], axis=1)
     totals.max_err[ok] = np.maximum(totals.max_err[ok], end_err[ok])
-    steps = np.where(ok, n, np.rint((totals.diverged_at - ref.t[0]) / ref.period))
     return Batch(
-        t=ref.t,
+        t=t,
         x_final=X.T.copy(),
         max_cp_error=totals.max_err,
         diverged_at=totals.diverged_at,
         peak_torque=totals.peak,
-        saturated_fraction=totals.saturated / np.maximum(steps, 1),
+        saturated_fraction=totals.saturated / np.maximum(totals.steps, 1),
+        arrival=totals.arrival,
+        max_lag=totals.max_lag,
         log=_join_log(logs, ref.arm) if log else None,
     )
+
+
+def _cp_at(ref, s: np.ndarray) -> np.ndarray:
+    """The plan's CP (2, ...) at fractional instants s (...) of its grid, interpolated linearly
+    (exact at whole instants)."""
+    s = np.clip(s, 0, ref.steps)
+    i = np.minimum(np.floor(s).astype(int), ref.steps - 1)
+    w = s - i
+    cp = ref.cp[:, :, 0]
+    return ((1 - w)[..., None] * cp[i] + w[..., None] * cp[i + 1]).transpose(-1, *range(s.ndim))
 
 
 def _log_chunk(logs: dict, x_first, x_next, outputs, m: int) -> None:
@@ -274,7 +327,10 @@ def _log_chunk(logs: dict, x_first, x_next, outputs, m: int) -> None:
 
 def _join_log(logs: dict, model) -> dict:
     """The chunks of a single run joined, with the state and CP of the last instant reached."""
+    progress = logs.pop("progress")
     out = {k: np.concatenate(v) for k, v in logs.items() if k != "x_last"}
+    # each chunk's progress starts at its first instant: keep one per instant
+    out["progress"] = np.concatenate([p[:-1] for p in progress] + [progress[-1][-1:]])
     out["x"] = np.vstack([out["x"], logs["x_last"][0]])
     out["cp"] = np.vstack([out["cp"], cp_points(model, out["x"][-1:, :3])])
     out["saturated"] = out["saturated"][:, 0] > 0
