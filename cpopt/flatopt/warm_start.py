@@ -198,6 +198,14 @@ zero as smoothing (a position fit alone leaves the ends, where the node values f
 free to kink, and the torque follows the fourth derivative)."""
 
 
+def reproduced(seed: Trajectory, t: np.ndarray, least: float) -> bool:
+    """True when the fit reproduces ``seed`` at times t: an exact plan (its CP's fourth
+    derivative defined) whose gamma keeps the sign of ``least`` there (a re-solve, a polish
+    dropping no switch here); across a sign change its jet would fight the moved acceleration."""
+    gamma = np.interp(t, seed.t, seed.gamma)
+    return bool(np.all(np.isfinite(seed.cp[:, :, 4])) and np.all(np.sign(least) * gamma > 0))
+
+
 def targets(
     seed: Trajectory, t: np.ndarray, least: float, h: float, gains: list[float]
 ) -> dict[int, tuple[np.ndarray, float]]:
@@ -209,9 +217,7 @@ def targets(
     (p'' + g0 e_y = gamma (cos, sin)(theta)): a stretch where the seed's gamma is too small or
     of the other sign would start the phase near its singularity."""
     gamma = np.interp(t, seed.t, seed.gamma)
-    # an exact plan whose gamma keeps this phase's sign (a re-solve, a polish dropping no
-    # switch here) is reproduced; across a sign change its jet would fight the moved acceleration
-    exact = bool(np.all(np.isfinite(seed.cp[:, :, 4])) and np.all(np.sign(least) * gamma > 0))
+    exact = reproduced(seed, t, least)
     units = {r: EXACT_FIT * gains[r] / h**r for r in range(5)} if exact else SEED_FIT
     out = {}
     for r, unit in units.items():
@@ -236,8 +242,10 @@ def fitted(
     """The free rows of a phase's coefficients (the others fixed) that fit the seed's CP and its
     derivatives on ``span`` [s] (:func:`targets`) by least squares."""
     h = span[1] - span[0]
-    inside = SIDE / h  # the phase's own limits at its ends: a seed holds a reset's time twice
+    inside = SIDE / h  # the phase's own limits at its ends: a plan holds a reset's time twice
     s = np.linspace(inside, 1.0 - inside, FIT_SAMPLES)
+    if not reproduced(seed, span[0] + s * h, least):
+        s = np.linspace(0.0, 1.0, FIT_SAMPLES)  # a collocation seed: continuous at the ends
     gains = [float(np.abs(basis.matrix(s, r)).max()) for r in range(5)]
     rows, rhs = [], []
     for order, (target, unit) in targets(seed, span[0] + s * h, least, h, gains).items():
