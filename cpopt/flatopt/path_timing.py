@@ -353,9 +353,9 @@ def timing_guess(path: PathSpec, coefficients: np.ndarray, rows: tuple[int, int]
 
 
 __all__ = [
-    "PathTimingCurve",
     "TANGENT_MIN",
     "TANGENT_RATIO",
+    "PathTimingCurve",
     "chosen_points",
     "initial_blocks",
     "lower_inverse",
