@@ -268,29 +268,64 @@ def simulate_batch(
         params = np.repeat(P[:, active], length, axis=1)
         out = f(X[:, active], c[:, active], schedule[:, k0 : k0 + length],
                 _noise_block(noise, active, rngs, length), params)  # fmt: skip
+        chunk = _Chunk.judged(controller, k0, c[:, active], out)
+        totals.add(active, chunk.upto, chunk.bad, chunk.done, chunk.figures,
+                   t[k0 + 1 : k0 + length + 1])  # fmt: skip
+        if log:
+            outputs = (chunk.qdd, chunk.figures["tau"], chunk.figures["sat"], chunk.cp)
+            _log_chunk(logs, X[:, active[0]], chunk.X_next[:, 0], outputs, chunk.upto[0])
+            logs["progress"].append(ref.t[0] + chunk.s[0, : chunk.upto[0] + 1] * ref.period)
+        last = chunk.upto - 1
+        X[:, active] = chunk.X_next[:, np.arange(A), last]
+        c[:, active] = chunk.c_next[:, np.arange(A), last]
+        active = active[chunk.stop < 0]
+        if active.size == 0:
+            break
+    return _batch(ref, t, X, totals, _join_log(logs, ref.arm) if log else None)
+
+
+@dataclass(frozen=True)
+class _Chunk:
+    """One chunk of periods of the active runs, judged: where each run stops (diverged, or its
+    progress reached the plan's end) and the figures the totals take."""
+
+    X_next: np.ndarray  # (6, A, length)
+    c_next: np.ndarray  # (2, A, length)
+    qdd: np.ndarray
+    cp: np.ndarray
+    s: np.ndarray  # the plan's instant tracked, in periods (A, length + 1)
+    bad: np.ndarray
+    done: np.ndarray
+    stop: np.ndarray
+    upto: np.ndarray
+    figures: dict
+
+    @classmethod
+    def judged(cls, controller: Controller, k0: int, c: np.ndarray, out) -> _Chunk:
+        """The chunk from the mapped period function's outputs ``out`` (from instant k0, the
+        runs' controller states c at k0)."""
+        ref = controller.reference
+        A = c.shape[1]
+        length = out[0].shape[1] // A
         X_next, c_next, tau, qdd, cp, sat = (
             np.asarray(o).reshape(o.shape[0], A, length) for o in out
         )
         k = np.arange(k0, k0 + length + 1)
-        c_all = np.concatenate([c[:, active, None], c_next], axis=2)  # (2, A, length + 1)
-        s = controller.progress(k, c_all)  # the plan's instant tracked, in periods
+        c_all = np.concatenate([c[:, :, None], c_next], axis=2)  # (2, A, length + 1)
+        s = controller.progress(k, c_all)
         cp_err = np.linalg.norm(cp - _cp_at(ref, s[:, :-1]), axis=0)
         bad = _first_bad(X_next, cp_err)
         done = _first(s[:, 1:] >= ref.steps - 1e-9)
         stop = np.where(bad >= 0, bad, done)
         upto = np.where(stop >= 0, stop + 1, length)
-        chunk = {"cp_err": cp_err, "lag": (k[:-1] - s[:, :-1]) * ref.period, "tau": tau,
-                 "sat": sat}  # fmt: skip
-        totals.add(active, upto, bad, done, chunk, t[k0 + 1 : k0 + length + 1])
-        if log:
-            _log_chunk(logs, X[:, active[0]], X_next[:, 0], (qdd, tau, sat, cp), upto[0])
-            logs["progress"].append(ref.t[0] + s[0, : upto[0] + 1] * ref.period)
-        last = upto - 1
-        X[:, active] = X_next[:, np.arange(A), last]
-        c[:, active] = c_next[:, np.arange(A), last]
-        active = active[stop < 0]
-        if active.size == 0:
-            break
+        figures = {"cp_err": cp_err, "lag": (k[:-1] - s[:, :-1]) * ref.period, "tau": tau,
+                   "sat": sat}  # fmt: skip
+        return cls(X_next, c_next, qdd, cp, s, bad, done, stop, upto, figures)
+
+
+def _batch(ref, t: np.ndarray, X: np.ndarray, totals: _Totals, log) -> Batch:
+    """The batch's result from the runs' final states X (6, N) and their totals; a run that
+    did not diverge also counts its CP error at its final state."""
     ok = np.isnan(totals.diverged_at)
     end_err = np.linalg.norm(cp_points(ref.arm, X.T[:, :3]) - ref.cp[-1, :, 0], axis=1)
     totals.max_err[ok] = np.maximum(totals.max_err[ok], end_err[ok])
@@ -303,7 +338,7 @@ def simulate_batch(
         saturated_fraction=totals.saturated / np.maximum(totals.steps, 1),
         arrival=totals.arrival,
         max_lag=totals.max_lag,
-        log=_join_log(logs, ref.arm) if log else None,
+        log=log,
     )
 
 
