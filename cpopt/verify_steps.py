@@ -30,10 +30,10 @@ from pathlib import Path
 import casadi as ca
 
 from . import compiled, dynamics, extrapolation, flat, kinematics
-from .dynamics import forward_acceleration, tracking_acceleration
+from .dynamics import forward_acceleration
 from .flatopt import samples
 from .flatopt.samples import ARM_PARAMETERS, TAU, ParametricArm, sample_outputs
-from .kinematics import link_geometry
+from .tracking.dfl import dfl_expressions
 
 SIMULATIONS = ("reduced", "closed_loop", "open_loop")
 DEGREES = (9, 15, 21, 27)
@@ -79,22 +79,6 @@ def reduced_rhs(degree: int) -> ca.Function:
     return ca.Function("reduced_rhs", [z, lam, h, c, kg], [zdot])
 
 
-def dfl_torque(model, q, qd, c, Pd, gains) -> tuple[ca.SX, ca.SX]:
-    """The dynamic feedback linearisation's torques (2) and compensator derivative (2) for a
-    model arm (numeric or parametric), as :func:`cpopt.tracking.dfl.dfl_law` computes them."""
-    K, g0 = model.K, model.gravity
-    geo = link_geometry(model, q)
-    pose = ca.vertcat(geo.wrist, geo.theta)
-    z = ca.vertcat(pose, ca.jtimes(pose, q, qd), c)
-    zs, alpha = ca.SX.sym("z", 8), ca.SX.sym("alpha", 2)
-    _, _, derivs = flat.cp_derivatives(zs, alpha, K, g0)
-    lower = ca.substitute(ca.horzcat(*derivs[:4]), alpha, ca.DM.zeros(2))  # free of alpha
-    P = ca.substitute(lower, zs, z)
-    v = Pd[:, 4] + (Pd[:, 0:4] - P) @ gains
-    _, zdot, a = flat.compensator_expressions(z, v, K, g0)
-    return tracking_acceleration(model, q, qd, a)[1], zdot[6:8]
-
-
 def closed_loop_rhs(kind: str, degree: int) -> ca.Function:
     """``(X, lam, h, c, gains, model, plant) -> Xdot``: the plant following the piece under the
     model's linearising law, X = (q, qd, xi, eta)."""
@@ -104,7 +88,7 @@ def closed_loop_rhs(kind: str, degree: int) -> ca.Function:
     model_values, model = _arm(kind, "model")
     plant_values, plant = _arm(kind, "plant")
     q, qd = ca.SX.sym("q", 3), ca.SX.sym("qd", 3)
-    tau, c_dot = dfl_torque(model, q, qd, X[6:8], jet(lam, h, c), gains)
+    tau, c_dot = dfl_expressions(model, q, qd, X[6:8], jet(lam, h, c), gains)
     qdd = forward_acceleration(plant, q, qd, tau)
     Xdot = ca.substitute(ca.vertcat(qd, qdd, c_dot), ca.vertcat(q, qd), X[0:6])
     inputs = [X, lam, h, c, gains, model_values, plant_values]
@@ -171,7 +155,6 @@ __all__ = [
     "SIMULATIONS",
     "SOURCES",
     "closed_loop_rhs",
-    "dfl_torque",
     "jet",
     "library_degree",
     "open_loop_rhs",

@@ -22,15 +22,16 @@ import numpy as np
 
 from ..plan import CPPlan
 from ..problem import MAX_SWITCHES, Problem
-from ..trajectory import sample
+from ..trajectory import Trajectory, sample
 from .seeded import Stage, solve_pattern
 from .switching import Pattern, Search, Solve, agreeing, gamma_signs_on_grid, within_budget
 
 
-def start_pattern(problem: Problem, start: CPPlan) -> Pattern | None:
-    """The pattern of ``start`` that ``problem`` allows: its switch times (at most the
-    problem's ``gamma_switches``) with the signs the pins allow that agree with the start's
-    gamma the longest; None for a path-timing problem or a start outside the motion."""
+def start_pattern(problem: Problem, start: CPPlan, sampled: Trajectory) -> Pattern | None:
+    """The pattern of ``start`` (``sampled``: its samples) that ``problem`` allows: its switch
+    times (at most the problem's ``gamma_switches``) with the signs the pins allow that agree
+    with the start's gamma the longest; None for a path-timing problem or a start outside the
+    motion."""
     o = problem.spec.optimizer
     duration = problem.nodes[-1].t
     times = tuple(float(start.nodes[i].t) for i in start.switches)
@@ -38,7 +39,7 @@ def start_pattern(problem: Problem, start: CPPlan) -> Pattern | None:
         return None
     budget = MAX_SWITCHES if o.gamma_switches == "auto" else o.gamma_switches
     times = tuple(t for t in within_budget(times, budget, duration) if 0 < t < duration)
-    return agreeing(problem, times, gamma_signs_on_grid(problem, sample(start)))
+    return agreeing(problem, times, gamma_signs_on_grid(problem, sampled))
 
 
 def restart(problem: Problem, solve: Solve, start: CPPlan) -> tuple[Search | None, str]:
@@ -52,11 +53,12 @@ def restart(problem: Problem, solve: Solve, start: CPPlan) -> tuple[Search | Non
     str
         Why not, for the summary of the search that runs instead ("" when solved).
     """
-    pattern = start_pattern(problem, start)
+    sampled = sample(start)
+    pattern = start_pattern(problem, start, sampled)
     if pattern is None:
         return None, "the start does not fit this problem"
     figures, tic = Stage(), time.perf_counter()
-    attempt = solve_pattern(solve, problem, pattern, sample(start))
+    attempt = solve_pattern(solve, problem, pattern, sampled)
     figures.add(attempt, tic)
     if attempt.status != "solved":
         return None, f"the start's pattern ended {attempt.status}"

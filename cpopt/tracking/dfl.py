@@ -19,8 +19,8 @@ import casadi as ca
 import numpy as np
 
 from .. import flat
-from ..dynamics import arm_dynamics
-from ..kinematics import kinematic_functions
+from ..dynamics import arm_dynamics, tracking_acceleration
+from ..kinematics import link_geometry
 from ..robot import Arm
 from .controller import Controller
 from .reference import Reference
@@ -50,28 +50,43 @@ def pole_placement_gains(poles=DEFAULT_POLES) -> np.ndarray:
     return coeffs.real[::-1][:4].copy()
 
 
+def dfl_expressions(model, q, qd, c, Pd, gains) -> tuple[ca.SX, ca.SX]:
+    """The linearising law as expressions: torques (2) and compensator derivative (2) for a
+    model arm, numeric or parametric (its values CasADi symbols: one compiled verification step
+    per arm kind, :mod:`cpopt.verify_steps`); q and qd are symbols.
+
+    c = (xi, eta) is the compensator's state, Pd (2 x 5) the desired CP and its derivatives
+    0..4, gains (4,) the pole-placement gains.
+    """
+    K, g0 = model.K, model.gravity
+    geo = link_geometry(model, q)
+    pose = ca.vertcat(geo.wrist, geo.theta)
+    z = ca.vertcat(pose, ca.jtimes(pose, q, qd), c)
+    zs, alpha = ca.SX.sym("z", 8), ca.SX.sym("alpha", 2)
+    _, _, derivs = flat.cp_derivatives(zs, alpha, K, g0)
+    lower = ca.substitute(ca.horzcat(*derivs[:4]), alpha, ca.DM.zeros(2))  # free of alpha
+    P = ca.substitute(lower, zs, z)
+    v = Pd[:, 4] + (Pd[:, 0:4] - P) @ gains
+    _, zdot, a = flat.compensator_expressions(z, v, K, g0)
+    return tracking_acceleration(model, q, qd, a)[1], zdot[6:8]
+
+
 @lru_cache(maxsize=16)
 def dfl_law(model: Arm) -> ca.Function:
-    """``(q, qd, c, Pd, gains) -> (tau, c_dot)``: the linearising law of a model arm.
+    """``(q, qd, c, Pd, gains) -> (tau, c_dot)``: the linearising law of a model arm
+    (:func:`dfl_expressions`).
 
     c = (xi, eta) is the compensator's state, Pd (2 x 5) the desired CP and its derivatives
     0..4, gains (4,) the pole-placement gains; tau (2,) [N m or N] are the actuated torques
     and c_dot the compensator's derivative.
     """
-    K, g0 = model.K, model.gravity
     q = ca.SX.sym("q", 3)
     qd = ca.SX.sym("qd", 3)
     c = ca.SX.sym("c", 2)
     Pd = ca.SX.sym("Pd", 2, 5)
     gains = ca.SX.sym("k", 4)
-    kin = kinematic_functions(model)
-    z = ca.vertcat(kin["pose"](q), kin["jacobian"](q) @ qd, c)
-    fl = flat.flat_functions(K, g0)
-    P = fl["output"](z)
-    v = Pd[:, 4] + (Pd[:, 0:4] - P) @ gains
-    _, zdot, a = fl["compensator"](z, v)
-    _, tau = arm_dynamics(model)["track"](q, qd, a)
-    return ca.Function("dfl", [q, qd, c, Pd, gains], [tau, zdot[6:8]])
+    tau, c_dot = dfl_expressions(model, q, qd, c, Pd, gains)
+    return ca.Function("dfl", [q, qd, c, Pd, gains], [tau, c_dot])
 
 
 class DFLController(Controller):
