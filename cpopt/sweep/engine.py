@@ -80,7 +80,11 @@ def connect(workers: int | None = None, scheduler: str | None = None):
             # the scheduler's health and metrics server still listens: not on 8787, which
             # another cluster may hold (a warning), but on a free port of this machine only
             scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-            silence_logs=logging.ERROR,
+            # the workers' own log lines would interleave with the sweep's progress, and on
+            # Ctrl-C a worker whose scheduler closed first logs a heartbeat traceback; every
+            # failure a point meets reaches the client (its exception, a lost worker) and the
+            # table: the workers log nothing below CRITICAL
+            silence_logs=logging.CRITICAL,
             env=env,
         )
     try:
