@@ -4,8 +4,8 @@ the rest, assembled into the values, gradient, Jacobian and Hessian of the Lagra
 The transcription writes the objective f and the constraints g as expressions of the decision
 variables x, the parameters p and symbols Y standing for every sample's outputs y(P_j)
 (:data:`cpopt.flatopt.samples.OUTPUTS`), where P_j, the sample's lifted CP derivatives, are part
-of x. Everything but y is cheap: it is expanded to SX and differentiated exactly by CasADi, with
-Y as an input. The chain rule joins the two parts; with L(x, Y) = lam_f f + lam_g' g and JY the
+of x. Everything but y is cheap: CasADi differentiates it exactly, with Y as an input. The chain
+rule joins the two parts; with L(x, Y) = lam_f f + lam_g' g and JY the
 Jacobian of the samples' outputs (block diagonal, from the library)
 
 * grad f = f_x + JY' f_Y, jac g = g_x + g_Y JY,
@@ -14,6 +14,17 @@ Jacobian of the samples' outputs (block diagonal, from the library)
 The last two terms are one 10 x 10 block per sample, computed by the compiled library
 (``sample_hess``; ``sample_gn`` leaves out the curvature of y). L_xY is not empty only when the
 objective's weights depend on x (free times): then its cross terms are added.
+
+The cheap part is differentiated as the MX graph the transcription wrote, not expanded to SX.
+The graph is a few hundred matrix operations (sparse basis matrices times a phase's few
+coefficients); expanded, it is 25 000-60 000 scalar operations, and the SX Hessian of the
+Lagrangian, 100 000-400 000, took 0.15-0.65 s to build for every pattern of signs and every
+refinement, most of a bundled problem's planning. Measured in-process on two idle cores (SX
+against MX, planning time): transfer_min_torque 0.69 / 0.40 s, swing_up_min_time 3.07 / 1.75 s
+(three builds), swing_up_switches 5.65 / 3.98 s, swing_up_path_timing 1.94 / 1.15 s; an MX
+evaluation costs about as much as the SX one (the Hessian 1.9 ms against 1.7 ms an iteration on
+swing_up_switches). The same optimum to 1e-9 relative; Ipopt's iteration counts differ in the
+rounding, like any change of the derivatives' arithmetic.
 """
 
 from __future__ import annotations
@@ -78,31 +89,23 @@ def _block_diagonal(values: ca.MX, block: ca.Sparsity, count: int) -> ca.MX:
 
 
 def _cheap_functions(x, p, Y, f, g) -> dict[str, ca.Function]:
-    """The expanded (SX) functions of everything but the samples' outputs and their derivatives
-    with respect to x and Y (see the module docstring)."""
-    F = ca.Function("cheap", [x, p, Y], [f, g]).expand()
-    xs, ps = ca.SX.sym("x", x.sparsity()), ca.SX.sym("p", p.sparsity())
-    Ys = ca.SX.sym("Y", Y.sparsity())
-    lam_f, lam_g = ca.SX.sym("lam_f"), ca.SX.sym("lam_g", g.numel())
-    fs, gs = F(xs, ps, Ys)
-    y = ca.vec(Ys)
+    """The functions of everything but the samples' outputs and their derivatives with respect
+    to x and Y (see the module docstring), differentiated on the transcription's MX graph."""
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", g.numel())
+    y = ca.vec(Y)
     count = Y.shape[1]
-    lag = lam_f * fs + ca.dot(lam_g, gs)
+    lag = lam_f * f + ca.dot(lam_g, g)
     mu = ca.gradient(lag, y)
     Hyy = ca.jacobian(mu, y)
     W = ca.horzcat(*[Hyy[NY * j : NY * (j + 1), NY * j : NY * (j + 1)] for j in range(count)])
-    Hxx, lag_x = ca.hessian(lag, xs)
-    hess_ins = [xs, ps, Ys, lam_f, lam_g]
+    Hxx, lag_x = ca.hessian(lag, x)
+    hess_ins = [x, p, Y, lam_f, lam_g]
     hess_outs = [ca.triu(Hxx), ca.reshape(mu, NY, count), ca.densify(W)]
     hess_outs.append(ca.jacobian(lag_x, y))
     return {
-        "value": ca.Function("cheap_value", [xs, ps, Ys], [fs, gs]),
-        "grad": ca.Function(
-            "cheap_grad", [xs, ps, Ys], [fs, ca.gradient(fs, xs), ca.gradient(fs, y)]
-        ),
-        "jac": ca.Function(
-            "cheap_jac", [xs, ps, Ys], [gs, ca.jacobian(gs, xs), ca.jacobian(gs, y)]
-        ),
+        "value": ca.Function("cheap_value", [x, p, Y], [f, g]),
+        "grad": ca.Function("cheap_grad", [x, p, Y], [f, ca.gradient(f, x), ca.gradient(f, y)]),
+        "jac": ca.Function("cheap_jac", [x, p, Y], [g, ca.jacobian(g, x), ca.jacobian(g, y)]),
         "hess": ca.Function("cheap_hess", hess_ins, hess_outs),
     }
 
