@@ -87,6 +87,16 @@ def check_time() -> None:
         _State.budget.check()
 
 
+def check_stop() -> None:
+    """Raise the stop that CasADi may have swallowed inside a solver: KeyboardInterrupt after
+    Ctrl-C, :class:`TimeLimitExceeded` once the budget has run out (else nothing). Called when
+    a solver returns, so that its result is not taken for a plan until the timer's next repeat
+    (:data:`REPEAT`), by which time a fast planner may have finished."""
+    if _State.armed and _State.interrupted:
+        raise KeyboardInterrupt
+    check_time()
+
+
 def _in_cleanup(frame) -> bool:
     """True inside this module or contextlib: a stop raised there would skip the restoring of
     the signal handlers; the next repeat lands elsewhere."""

@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 
 from . import progress
+from .budget import check_stop
 
 IPOPT_STATUS = {
     "Solve_Succeeded": "solved",
@@ -249,6 +250,7 @@ def run_nlp(
     elapsed = time.perf_counter() - start
     if reporter is not None and reporter.stop is not None:
         raise reporter.stop
+    check_stop()
     ipopt, status, iterations = read_stats(solver.stats())
     if reporter is not None and reporter.capped:
         ipopt, status = f"Iteration_Cap_{limit}", "max_iterations"

@@ -25,6 +25,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from ..budget import check_stop
 from ..problem import Problem
 from ..solver import SolverStats, read_stats
 from .joint_plan import (
@@ -107,6 +108,7 @@ def collocate(
         sol = ocp.solve_limited()
     except RuntimeError:  # a failure that is not a limit (Fatrop's return status 1, ...)
         sol = ocp.non_converged_solution
+    check_stop()
     total = time.perf_counter() - tic
     said, status, iterations = read_stats(sol.stats)
     solve_time = float(sol.stats.get("t_wall_total", total))  # the solver alone (record_time)

@@ -24,6 +24,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from ..budget import check_stop
 from ..dynamics import rk4_step, state_derivative
 from ..kinematics import kinematic_functions
 from ..nodes import node_names
@@ -146,6 +147,7 @@ def hermite_simpson(problem: Problem, intervals: int):
     built = time.perf_counter()
     solution = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solved = time.perf_counter()
+    check_stop()
     said, status, iterations = read_stats(solver.stats())
     xs = np.asarray(solution["x"]).ravel()
     states = xs[: 6 * (n + 1)].reshape(n + 1, 6)
