@@ -207,12 +207,26 @@ class IterationReporter(ca.Callback):
     def get_sparsity_in(self, i: int) -> ca.Sparsity:
         return ca.Sparsity.dense(self.sizes.get(ca.nlpsol_out(i), 0), 1)
 
-    def start(self, label: str, limit: int | None = None, abandon=None) -> None:
+    def start(self, label: str, limit: int | None = None, abandon=None, lbg=None, ubg=None) -> None:
         """Reset the count for a new run called ``label``, stopped after ``limit`` iterations
         if given (a cap below the solver's own ``max_iter``, without rebuilding the solver), or
-        once ``abandon(iteration, objective)`` is true (a run another has already beaten)."""
+        once ``abandon(iteration, objective, infeasibility)`` is true (a run another has
+        already beaten; the infeasibility is the largest violation of ``lbg <= g <= ubg``)."""
         self.count, self.label, self.stop, self.limit = 0, label, None, limit
         self.capped, self.abandon, self.abandoned = False, abandon, False
+        self.bounds = (
+            (np.asarray(lbg, float).ravel(), np.asarray(ubg, float).ravel())
+            if lbg is not None and ubg is not None
+            else None
+        )
+
+    def infeasibility(self, g) -> float:
+        """The largest violation of the run's constraint bounds by ``g`` (0 without bounds)."""
+        if self.bounds is None or self.bounds[0].size == 0:
+            return 0.0
+        g = np.asarray(g, float).ravel()
+        lower, upper = self.bounds
+        return float(np.max(np.maximum(lower - g, g - upper), initial=0.0))
 
     def eval(self, arg) -> list:
         self.count += 1
@@ -222,7 +236,8 @@ class IterationReporter(ca.Callback):
             self.stop = stop
         self.capped = self.limit is not None and self.count > self.limit
         if self.abandon is not None:
-            self.abandoned = bool(self.abandon(self.count, float(arg[1])))
+            infeasibility = self.infeasibility(arg[2])
+            self.abandoned = bool(self.abandon(self.count, float(arg[1]), infeasibility))
         return [1 if self.stop is not None or self.capped or self.abandoned else 0]
 
 
@@ -239,12 +254,13 @@ def run_nlp(
     ``reporter`` is the solver's :class:`IterationReporter`, if it has one; ``label`` names the
     run in progress lines and above Ipopt's output (``--verbose``); ``limit`` caps the
     iterations through the reporter (a run stopped there is ``max_iterations``); ``abandon``
-    stops it once ``abandon(iteration, objective)`` is true (status ``dominated``).
+    stops it once ``abandon(iteration, objective, infeasibility)`` is true (status
+    ``dominated``; see :meth:`IterationReporter.start`).
     """
     if label:
         progress.ipopt_run(label)
     if reporter is not None:
-        reporter.start(label, limit, abandon)
+        reporter.start(label, limit, abandon, arguments.get("lbg"), arguments.get("ubg"))
     start = time.perf_counter()
     solution = solver(**arguments)
     elapsed = time.perf_counter() - start

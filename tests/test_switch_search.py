@@ -10,7 +10,14 @@ import pytest
 from cpopt.flatopt import optimize
 from cpopt.flatopt.seed import coarse_seed, kept_crossings
 from cpopt.flatopt.seeded import worth_polishing
-from cpopt.flatopt.switching import neighbours, preference, seed_pattern, with_switches
+from cpopt.flatopt.switching import (
+    DOMINATED_EARLIEST,
+    dominated,
+    neighbours,
+    preference,
+    seed_pattern,
+    with_switches,
+)
 from cpopt.problem import load_problem, parse_problem
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -164,3 +171,33 @@ def test_attempts_rank_solved_then_sane_then_fewest_violations():
     worse = attempt("max_iterations", "Maximum_Iterations_Exceeded", 3e4, ("one", "two"))
     ranked = sorted([broken, worse, near, solved], key=preference, reverse=True)
     assert ranked == [solved, near, worse, broken]
+
+
+def _abandoned_at(objectives, infeasibilities=None, best=100.0):
+    """The first iteration (1-based) at which dominated(best) abandons the run, or None."""
+    abandon = dominated(best)
+    infeasibilities = infeasibilities or [0.0] * len(objectives)
+    for k, (f, inf) in enumerate(zip(objectives, infeasibilities, strict=True), start=1):
+        if abandon(k, f, inf):
+            return k
+    return None
+
+
+def test_a_dominated_run_is_abandoned_early_only_when_far_behind_or_stalled():
+    # 5200 times the best from the start (swing_up_min_torque's losing sign): at iteration 10
+    assert _abandoned_at([520000.0] * 40) == DOMINATED_EARLIEST == 10
+    # falling 20 % an iteration from 30 times the best to 1.5: never abandoned
+    assert _abandoned_at([max(3000.0 * 0.8**k, 150.0) for k in range(40)]) is None
+    # falling to 2.09 times the best and staying (transfer_min_torque's): abandoned once stalled
+    falling = [max(3000.0 * 0.8**k, 209.0) for k in range(40)]
+    stalled_from = next(k for k, f in enumerate(falling, start=1) if f == 209.0)
+    assert _abandoned_at(falling) == stalled_from + 5
+    # 5 times the best and falling 3 % an iteration (not stalled): abandoned at iteration 30,
+    # still above twice the best; from 4 times, it falls below twice the best first
+    assert _abandoned_at([500.0 * 0.97**k for k in range(40)]) == 30
+    assert _abandoned_at([400.0 * 0.97**k for k in range(40)]) is None
+    # infeasible and not halving in 5 iterations (transfer_straight_line's restoration)
+    stuck = [11.8] * 9 + [7.6] * 10
+    assert _abandoned_at([90.0] * len(stuck), stuck) == 10
+    halving = [11.8 * 0.8**k for k in range(40)]
+    assert _abandoned_at([90.0] * 40, halving) is None

@@ -90,6 +90,7 @@ class SignAttempt:
             "cost_terms", "iterations", "certified_min_abs_gamma", "refinements",
         )  # fmt: skip
         out = {k: getattr(self, k) for k in keys}
+        out["time_s"] = self.build_time_s + self.solve_time_s
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
 
@@ -265,8 +266,8 @@ def solve_for_signs(
     limit : int, optional
         Most Ipopt iterations over all rounds (a cheap attempt of the search's polish).
     abandon : callable, optional
-        ``abandon(iteration, objective) -> bool``: stop a run another pattern has clearly
-        beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
+        ``abandon(iteration, objective, infeasibility) -> bool``: stop a run another pattern
+        has clearly beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
     """
     grids, x0 = initial_grids(problem), None
     build_time = solve_time = 0.0
