@@ -155,6 +155,7 @@ class NlpRun:
     iterations: int
     solve_time_s: float
     lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    multipliers: dict = field(default_factory=dict)
 
 
 def read_stats(stats: Mapping) -> tuple[str, str, int]:
@@ -280,6 +281,7 @@ def run_nlp(
         iterations=iterations,
         solve_time_s=elapsed,
         lam_g=-np.asarray(solution["lam_g"]).ravel(),
+        multipliers={k: np.asarray(solution[k]).ravel() for k in ("lam_x", "lam_g")},
     )
 
 

@@ -225,6 +225,30 @@ def active_gamma(nlp: FlatNLP, g: np.ndarray, lam_g: np.ndarray, times: list) ->
     return tuple(out)
 
 
+def _row_keys(rows: list) -> list:
+    """A key per constraint row that survives a refinement: its label and its rank among the
+    rows of that label (the samples a refinement adds get labels of their own)."""
+    seen: dict = {}
+    keys = []
+    for row in rows:
+        seen[row] = seen.get(row, -1) + 1
+        keys.append((row, seen[row]))
+    return keys
+
+
+def resumed_multipliers(previous: tuple, nlp: FlatNLP) -> dict:
+    """``lam_x0`` and ``lam_g0`` for a refinement round from the previous round's solution
+    (``previous``: its NLP and run): the core variables' and every surviving row's multipliers
+    carried over, zero for the added samples' rows and lifted variables."""
+    old_nlp, run = previous
+    lam_x = np.zeros(nlp.solver.size_in(0)[0])
+    core = nlp.layout.size
+    lam_x[:core] = run.multipliers["lam_x"][:core]
+    old = dict(zip(_row_keys(old_nlp.rows), run.multipliers["lam_g"], strict=True))
+    lam_g = np.array([old.get(key, 0.0) for key in _row_keys(nlp.rows)])
+    return {"lam_x0": lam_x, "lam_g0": lam_g}
+
+
 def pattern_label(signs: tuple[int, ...], switches: int = 0) -> str:
     """How progress names a pattern: ``gamma positive``, or ``gamma -/+ (1 switch)``."""
     if len(set(signs)) == 1:
@@ -269,7 +293,7 @@ def solve_for_signs(
         ``abandon(iteration, objective, infeasibility) -> bool``: stop a run another pattern
         has clearly beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
     """
-    grids, x0 = initial_grids(problem), None
+    grids, x0, previous = initial_grids(problem), None, None
     build_time = solve_time = 0.0
     iterations = refinements = 0
     pattern = pattern_label(signs, len(switches))
@@ -277,7 +301,8 @@ def solve_for_signs(
         label = pattern + (f", refinement {round_ - 1}" if round_ > 1 else "")
         progress.stage(f"flat optimizer: {label}")
         tic = time.perf_counter()
-        nlp = build(problem, signs, grids, warm=seed is not None)
+        resumed = x0 is not None
+        nlp = build(problem, signs, grids, warm=seed is not None and not resumed, resume=resumed)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         p = nlp.parameters(problem.values)
         # a refinement round keeps the core variables and lifts them onto the new samples
@@ -285,6 +310,8 @@ def solve_for_signs(
         lbx, ubx = _bounds(nlp, problem)
         left = None if limit is None else max(limit - iterations, 1)
         arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+        if resumed:
+            arguments.update(resumed_multipliers(previous, nlp))
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
@@ -296,7 +323,7 @@ def solve_for_signs(
         if not any(dips) and not any(gaps):
             break
         grids = tuple(g.refined(*new) for g, *new in zip(grids, gaps, dips, strict=True))
-        x0 = run.x
+        x0, previous = run.x, (nlp, run)
         refinements += 1
     # constraints of the plan the user gets: lifted samples recomputed from the core variables
     g = np.asarray(nlp.constraints(nlp.complete(run.x, p), p)).ravel()

@@ -61,6 +61,20 @@ WARM_MU_INIT = 1e-3
 close, and Ipopt's default 0.1 first pushes it away (measured on the benchmark transfer's
 seeded switch pattern with mu_strategy monotone: 623 iterations at 0.1, 434 at 1e-2, 259 at
 1e-3, 287 at 1e-4; the adaptive strategy's problems unchanged)."""
+RESUME_OPTIONS = {
+    "warm_start_init_point": "yes",
+    **{
+        f"warm_start_{name}": 1e-5
+        for name in ("bound_push", "bound_frac", "slack_bound_push", "slack_bound_frac")
+    },
+    "warm_start_mult_bound_push": 1e-5,
+}
+"""Ipopt's options for a refinement round, started from the previous round's solution and its
+multipliers (:func:`cpopt.flatopt.resumed_multipliers`). Measured, the refinement rounds'
+iterations: swing_up_min_time 35 + 32 cold, 12 + 10 resumed; transfer_min_time_on_path
+21 + 23, 9 + 8; swing_up_holding 10, 8; swing_up_torque_limited 17, 14. Pushing the start
+only 1e-9 inside its bounds was worse on two (33 and 31: the added samples' rows start with
+zero multipliers), 1e-3 worse on one; Ipopt's adaptive barrier ignores ``mu_init``."""
 LIMIT_SAFETY = 2e-3
 """Relative margin kept from torque and velocity limits on the sample grid."""
 REACH_EPS = {"RRR": 1e-4, "PRR": 1e-4, "RPR": 1e-4, "PPR": -1.0}
@@ -172,6 +186,7 @@ class _Transcription:
     samples: list = field(default_factory=list)
     node_lifts: dict = field(default_factory=dict)  # (node, after, fourth) -> (symbol, value)
     warm: bool = False  # started from a seed trajectory (WARM_MU_INIT)
+    resume: bool = False  # started from the previous round's solution and multipliers
 
     @property
     def settings(self):
@@ -335,6 +350,7 @@ def build(
     signs: tuple[int, ...],
     grids: tuple[Grid, ...] | None = None,
     warm: bool = False,
+    resume: bool = False,
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -367,10 +383,11 @@ def build(
         holding,
         _settings_key(problem),
         warm,
+        resume,
     )
     if key not in _CACHE:
         sym = {n: ca.MX.sym(n) for n in problem.values}
-        tr = _Transcription(problem, signs, holding, sym, warm=warm)
+        tr = _Transcription(problem, signs, holding, sym, warm=warm, resume=resume)
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
             _phase(tr, k, grids[k].samples())
@@ -654,7 +671,11 @@ def _finish(tr: _Transcription) -> FlatNLP:
     opts = {
         "print_time": False,
         "show_eval_warnings": False,
-        "ipopt": {**ipopt_options(o.solver), **({"mu_init": WARM_MU_INIT} if tr.warm else {})},
+        "ipopt": {
+            **ipopt_options(o.solver),
+            **({"mu_init": WARM_MU_INIT} if tr.warm else {}),
+            **(RESUME_OPTIONS if tr.resume else {}),
+        },
         "iteration_callback": reporter,
         **nlp.options,
     }
