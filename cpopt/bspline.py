@@ -59,7 +59,12 @@ class SplineBasis:
         w = np.diff(b)
         d = self.degree
         pieces = np.zeros((mids.size, d + 1, 2))
-        derivs = [self.matrix(mids, r) @ coeffs for r in range(d + 1)]  # each (pieces, 2)
+        # The derivatives are differences of the coefficients: taken of the coefficients less
+        # their mean (B-splines sum to one, so only the value moves), they lose the digits of
+        # the curve's offset, not of its motion.
+        ref = coeffs.mean(axis=0)
+        derivs = [self.matrix(mids, r) @ (coeffs - ref) for r in range(d + 1)]  # (pieces, 2)
+        derivs[0] = derivs[0] + ref
         for k in range(mids.size):
             # Taylor at the middle: sum_j D_j (w (lam - 1/2))^j / j!, expanded in powers of lam
             for j in range(d + 1):

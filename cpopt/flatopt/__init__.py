@@ -22,7 +22,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .. import progress
+from .. import flat, progress
+from ..curves import with_end_jets
 from ..nodes import node_names, nodes_from_values, to_file
 from ..objectives import weights
 from ..plan import CPPlan, Phase
@@ -186,10 +187,7 @@ def plan_from(
     nodes = nodes_from_values(values, len(problem.nodes))
     times = [node.t for node in nodes]
     phases = tuple(
-        Phase(
-            phase_pieces(problem, k, np.asarray(outs[1 + k]), times[k], times[k + 1] - times[k]),
-            sign,
-        )
+        Phase(_phase_curve(problem, nodes, k, np.asarray(outs[1 + k])), sign)
         for k, sign in enumerate(signs)
     )
     w = weights(o.objective)
@@ -206,6 +204,19 @@ def plan_from(
         free_values=free_values, switches=tuple(switches),
     )  # fmt: skip
     return plan, times, terms
+
+
+def _phase_curve(problem: Problem, nodes: list, k: int, packed: np.ndarray):
+    """Phase k's CP curve; a B-spline phase ends exactly at its nodes' states
+    (:func:`cpopt.curves.with_end_jets`: evaluated from its coefficients, a short phase's end
+    loses digits). A path-timing phase is left as it is."""
+    t0, t1 = nodes[k].t, nodes[k + 1].t
+    curve = phase_pieces(problem, k, packed, t0, t1 - t0)
+    if problem.spec.optimizer.curve == "path_timing":
+        return curve
+    K, g0 = problem.arm.K, problem.arm.gravity
+    start = flat.output(nodes[k].state(after=True), K, g0)
+    return with_end_jets(curve, start, flat.output(nodes[k + 1].state(), K, g0))
 
 
 def _bounds(nlp: FlatNLP, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
