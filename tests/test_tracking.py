@@ -396,3 +396,25 @@ def test_benchmark_prints_a_headroom_line_per_optimized_plan():
     assert float(match[1]) == pytest.approx(1.135, abs=0.003)
     assert match[2] == "1.000"
     assert "ROBUST swing_up_torque_limited tvlqr " in done.stdout
+
+
+def test_a_buffered_call_equals_casadis_own_call_repeated_inputs_included():
+    """call_buffered (NumPy in and out through CasADi's buffer, no DM conversion) gives
+    exactly the values of the function's own call, an input of one instance repeated for
+    every instance of a map as CasADi repeats it."""
+    import casadi as ca
+
+    from cpopt.tracking.simulation import call_buffered
+
+    x, u = ca.SX.sym("x", 3), ca.SX.sym("u", 2)
+    f = ca.Function("f", [x, u], [ca.sin(x) * u[0] + u[1], ca.vertcat(x[0] * x[1], u[0])])
+    mapped = f.map(7)
+    rng = np.random.default_rng(3)
+    X, U = rng.normal(size=(3, 7)), rng.normal(size=(2, 1))
+    own = [np.asarray(o) for o in mapped(X, U)]
+    got = call_buffered(mapped, X, U)
+    assert [g.shape for g in got] == [(3, 7), (2, 7)]
+    for g, o in zip(got, own, strict=True):
+        np.testing.assert_array_equal(g, o)
+    with pytest.raises(ValueError, match="input 1"):
+        call_buffered(mapped, X, rng.normal(size=(2, 3)))

@@ -120,6 +120,32 @@ def _batch_function(step: ca.Function, length: int, runs: int) -> ca.Function:
     return step.mapaccum("chunk", length, [0, 1], [0, 1]).map(runs)
 
 
+def call_buffered(f: ca.Function, *args: np.ndarray) -> list[np.ndarray]:
+    """``f(*args)`` with dense numeric inputs and outputs through CasADi's zero-copy buffer:
+    the outputs as arrays of the function's shapes. An input with a fraction of the columns a
+    mapped function takes is repeated, as CasADi's own call repeats it for every instance.
+    Converting a large DM output to NumPy (``DM.full``) took 1 ms a call, 12 % of a robustness
+    run."""
+    buffer, trigger = f.buffer()
+    inputs = [_full_input(f, i, np.asarray(a, float)) for i, a in enumerate(args)]
+    outputs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
+    for i, a in enumerate(inputs):
+        buffer.set_arg(i, memoryview(a))
+    for i, o in enumerate(outputs):
+        buffer.set_res(i, memoryview(o))
+    trigger()
+    return [o.reshape(f.size_out(i), order="F") for i, o in enumerate(outputs)]
+
+
+def _full_input(f: ca.Function, i: int, a: np.ndarray) -> np.ndarray:
+    """Input i as f's buffer takes it: column-major, its columns repeated to f's count."""
+    rows, cols = f.size_in(i)
+    a = a.reshape(rows, -1, order="F") if a.ndim < 2 else a
+    if a.shape[0] != rows or cols % a.shape[1]:
+        raise ValueError(f"input {i} of {f.name()} is {a.shape}, not a part of {(rows, cols)}")
+    return np.ravel(np.tile(a, (1, cols // a.shape[1])), order="F")
+
+
 @dataclass(frozen=True)
 class Batch:
     """Runs of one controller on many plants (one entry per run).
@@ -266,8 +292,8 @@ def simulate_batch(
         f = _batch_function(step, length, A)
         # per-period inputs run after run: each run's parameters repeated over its periods
         params = np.repeat(P[:, active], length, axis=1)
-        out = f(X[:, active], c[:, active], schedule[:, k0 : k0 + length],
-                _noise_block(noise, active, rngs, length), params)  # fmt: skip
+        out = call_buffered(f, X[:, active], c[:, active], schedule[:, k0 : k0 + length],
+                            _noise_block(noise, active, rngs, length), params)  # fmt: skip
         chunk = _Chunk.judged(controller, k0, c[:, active], out)
         totals.add(active, chunk.upto, chunk.bad, chunk.done, chunk.figures,
                    t[k0 + 1 : k0 + length + 1])  # fmt: skip
