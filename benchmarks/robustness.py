@@ -55,6 +55,7 @@ Usage::
     python benchmarks/robustness.py --plans paper_transfer --trials 20
     python benchmarks/robustness.py --quick               # a small run (a test)
     python benchmarks/robustness.py --plans swing_up_min_time --headroom 0.1 --trials 20
+    python benchmarks/robustness.py --controllers tvlqr,dfl --headroom 0   # issue 24's work
 """
 
 from __future__ import annotations
@@ -295,7 +296,7 @@ def run_serial(problems, args, start: float) -> list:
             if not solution.ok:
                 print(f"{problem.name}: not solved ({solution.status}), skipped", flush=True)
                 continue
-            for name in CONTROLLERS:
+            for name in args.controllers:
                 rows.append(measure(problem, solution.plan, name, args))
                 print(format_row(rows[-1]), flush=True)
             if headroom_applies(problem, args):
@@ -334,7 +335,8 @@ def run_distributed(problems, args, start: float) -> list:
 
     data = {p.name: read_yaml(p.source) for p in problems}
     order = {
-        (p.name, c): i for i, (p, c) in enumerate((p, c) for p in problems for c in CONTROLLERS)
+        (p.name, c): i
+        for i, (p, c) in enumerate((p, c) for p in problems for c in args.controllers)
     }
     done: dict[int, Row] = {}
     headroom: dict[str, HeadroomRow] = {}
@@ -361,7 +363,7 @@ def run_distributed(problems, args, start: float) -> list:
                 elif args.time_limit and time.perf_counter() - start > args.time_limit:
                     print(f"time limit reached: {problem.name} not measured", flush=True)
                 else:
-                    for name in CONTROLLERS:
+                    for name in args.controllers:
                         work.add(client.submit(measure_task, data[problem.name], problem.source,
                                                plan, name, args, pure=False))  # fmt: skip
                     if headroom_applies(problem, args):
@@ -396,7 +398,16 @@ def main(argv=None) -> int:
         default=HEADROOM,
         help=f"torque headroom h of the HEADROOM lines, 0 <= h < 1 ({HEADROOM}; 0: none)",
     )
+    parser.add_argument(
+        "--controllers",
+        default=",".join(CONTROLLERS),
+        help=f"controllers to run, NAME,... (default: {','.join(CONTROLLERS)})",
+    )
     args = parser.parse_args(argv)
+    args.controllers = tuple(args.controllers.split(","))
+    unknown = set(args.controllers) - set(CONTROLLERS)
+    if unknown or not args.controllers:
+        parser.error(f"--controllers: choose among {', '.join(CONTROLLERS)}")
     if not 0 <= args.headroom < 1:
         parser.error(f"--headroom {args.headroom:g}: give a fraction 0 <= h < 1")
     if args.quick:
