@@ -132,20 +132,25 @@ def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_s
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "path, search",
+    "path, search, method",
     [
-        (ROOT / "problems" / "rpr_transfer.yaml", "seed"),  # crashed the greedy search once
-        (ROOT / "problems" / "rpr_transfer.yaml", "greedy"),
-        (ROOT / "problems" / "prr_swing_up.yaml", "seed"),
+        (ROOT / "problems" / "rpr_transfer.yaml", "seed", "seed"),  # crashed the greedy once
+        (ROOT / "problems" / "rpr_transfer.yaml", "greedy", "greedy"),
+        # the seed's two switches (1.36, 1.80 s) run to the iteration limit (1094 there); the
+        # greedy search then solves one sign (4379): a solved plan before an unsolved iterate
+        (ROOT / "problems" / "prr_swing_up.yaml", "seed", "greedy"),
     ],
     ids=["rpr transfer seed", "rpr transfer greedy", "prr swing-up seed"],
 )
-def test_no_search_raises_on_an_unseen_problem(path, search):
+def test_no_search_raises_on_an_unseen_problem(path, search, method):
     problem = _auto(path, switch_search=search, samples=30)
     result = optimize(problem)
     assert result.status in ("solved", "max_iterations", "not_converged", "infeasible")
     assert result.plan is not None
-    assert result.solver.details.as_dict()["search"]["method"] == search
+    figures = result.solver.details.as_dict()["search"]
+    assert figures["method"] == method
+    if method != search:
+        assert result.status == "solved" and "then greedy search" in figures["summary"]
 
 
 def test_collocation_reports_where_gamma_crosses_zero(transfer):
