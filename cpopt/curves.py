@@ -10,6 +10,7 @@ certifies the regularity margin between samples.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from math import factorial
 
@@ -85,7 +86,8 @@ class PiecewisePolynomial:
 
         With ``offset = (0, g0)`` this is the minimum of |gamma| along the plan: the squared
         norm is a polynomial on each piece, minimised at an end or at a real root of its
-        derivative.
+        derivative. A curve with a non-finite coefficient (a failed solve's iterate) has NaN
+        as its minimum, at the start of the first such piece.
 
         Returns
         -------
@@ -94,13 +96,17 @@ class PiecewisePolynomial:
         t : float
             A time where it is attained [s].
         """
-        return min(self.piece_minima(offset))
+        minima = self.piece_minima(offset)
+        return next((m for m in minima if math.isnan(m[0])), None) or min(minima)
 
     def piece_minima(self, offset: tuple[float, float]) -> list[tuple[float, float]]:
         """Exact minimum of ``|p''(t) + offset|`` on each piece, as (value [m/s^2], time [s])."""
         out = []
         deg = self.coeffs.shape[1] - 1
         for k, h in enumerate(np.diff(self.breaks)):
+            if not np.all(np.isfinite(self.coeffs[k])):  # a failed solve's iterate: no minimum
+                out.append((math.nan, float(self.breaks[k])))
+                continue
             polys = []
             for i in range(2):
                 p = np.polynomial.Polynomial(self.coeffs[k, :, i]).deriv(2) / h**2

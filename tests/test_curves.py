@@ -136,3 +136,15 @@ def test_basis_matrices_equal_scipys_bspline(degree):
             scale = max(1.0, np.abs(expected).max())
             np.testing.assert_allclose(basis.matrix(s, order), expected, rtol=0, atol=1e-13 * scale)
         assert not basis.matrix(s, degree + 1).any()
+
+
+def test_the_minimum_of_gamma_of_a_curve_with_a_non_finite_coefficient_is_nan():
+    """A failed solve's iterate may hold NaN coefficients: certifying it gives NaN (and where),
+    not numpy's LinAlgError from the roots of a NaN polynomial (a traceback a user saw)."""
+    curve = hermite(0.0, 1.0, np.zeros((2, 4)), np.ones((2, 4)))
+    coeffs = np.concatenate([curve.coeffs, curve.coeffs])
+    coeffs[1, 3, 0] = np.nan
+    broken = PiecewisePolynomial(np.array([0.0, 1.0, 2.0]), coeffs)
+    value, where = broken.min_norm_of_acceleration_plus((0.0, 9.81))
+    assert np.isnan(value) and where == 1.0
+    assert np.isfinite(curve.min_norm_of_acceleration_plus((0.0, 9.81))[0])
