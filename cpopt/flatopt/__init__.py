@@ -276,6 +276,21 @@ def _start(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed) -> np.n
     return seeded_guess(nlp, problem, signs, seed)
 
 
+def _round_arguments(nlp: FlatNLP, problem: Problem, signs, seed, previous) -> dict:
+    """nlpsol's arguments for a round: the first starts from the seed trajectory or the closed
+    form; a refinement round from the previous round's solution (``previous``: its NLP and
+    run), its core variables lifted onto the new samples, with its multipliers."""
+    p = nlp.parameters(problem.values)
+    lbx, ubx = _bounds(nlp, problem)
+    arguments = {"p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+    if previous is None:
+        arguments["x0"] = _start(nlp, problem, signs, seed)
+    else:
+        arguments["x0"] = nlp.complete(previous[1].x, p)
+        arguments.update(resumed_multipliers(previous, nlp))
+    return arguments
+
+
 def solve_for_signs(
     problem: Problem,
     signs: tuple[int, ...],
@@ -304,7 +319,7 @@ def solve_for_signs(
         ``abandon(iteration, objective, infeasibility) -> bool``: stop a run another pattern
         has clearly beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
     """
-    grids, x0, previous = initial_grids(problem), None, None
+    grids, previous = initial_grids(problem), None
     build_time = solve_time = 0.0
     iterations = refinements = 0
     pattern = pattern_label(signs, len(switches))
@@ -312,20 +327,15 @@ def solve_for_signs(
         label = pattern + (f", refinement {round_ - 1}" if round_ > 1 else "")
         progress.stage(f"flat optimizer: {label}")
         tic = time.perf_counter()
-        resumed = x0 is not None
+        resumed = previous is not None
         nlp = build(problem, signs, grids, warm=seed is not None and not resumed, resume=resumed)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
-        p = nlp.parameters(problem.values)
-        # a refinement round keeps the core variables and lifts them onto the new samples
-        x0 = _start(nlp, problem, signs, seed) if x0 is None else nlp.complete(x0, p)
-        lbx, ubx = _bounds(nlp, problem)
+        arguments = _round_arguments(nlp, problem, signs, seed, previous)
         left = None if limit is None else max(limit - iterations, 1)
-        arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
-        if resumed:
-            arguments.update(resumed_multipliers(previous, nlp))
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
+        p = arguments["p"]
         plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
         if run.status != "solved":
             break
@@ -334,7 +344,7 @@ def solve_for_signs(
         if not any(dips) and not any(gaps):
             break
         grids = tuple(g.refined(*new) for g, *new in zip(grids, gaps, dips, strict=True))
-        x0, previous = run.x, (nlp, run)
+        previous = (nlp, run)
         refinements += 1
     # constraints of the plan the user gets: lifted samples recomputed from the core variables
     g = np.asarray(nlp.constraints(nlp.complete(run.x, p), p)).ravel()

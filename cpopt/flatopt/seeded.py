@@ -169,12 +169,8 @@ def search(problem: Problem, solve: Solve) -> Search:
         )
     method = "seed"
     if best.status != "solved":  # the greedy search starts from fewer switches
-        progress.stage("switch search: the seed's pattern did not solve, greedy search")
-        result = greedy_search(problem, solve)
-        tried += list(result.attempts)
-        if _better(result.best, best):
-            best, method = result.best, "greedy"
-        finish += f"; not solved, then greedy search: {result.summary}"
+        best, method, said = _greedy_if_better(problem, solve, best, tried)
+        finish += f"; not solved, then greedy search: {said}"
     summary = (
         f"{len(best.switch_times)} switch(es) ({wanted} asked): seed crossings at "
         f"{_times(seed.report.crossings)}, pattern {_times(pattern.times)}; {finish}"
@@ -187,6 +183,18 @@ def search(problem: Problem, solve: Solve) -> Search:
         "polish": polished.as_dict(),
     }
     return Search(tuple(tried), best, summary, figures)
+
+
+def _greedy_if_better(problem: Problem, solve: Solve, best, tried: list) -> tuple:
+    """After the seed's pattern did not solve: the greedy search's best if it beats ``best``
+    (its attempts added to ``tried``), the method that found the plan kept, and the greedy
+    search's summary."""
+    progress.stage("switch search: the seed's pattern did not solve, greedy search")
+    result = greedy_search(problem, solve)
+    tried += list(result.attempts)
+    if _better(result.best, best):
+        return result.best, "greedy", result.summary
+    return best, "seed", result.summary
 
 
 def _greedy_after(problem: Problem, solve: Solve, seed: Seed) -> Search:
