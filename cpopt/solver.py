@@ -146,6 +146,8 @@ class NlpRun:
         Wall time of the call [s].
     lam_g : numpy.ndarray
         The constraints' multipliers, positive where a lower bound binds.
+    lam_x : numpy.ndarray
+        The variables' bound multipliers as nlpsol returns them (for a warm start).
     """
 
     x: np.ndarray
@@ -155,7 +157,7 @@ class NlpRun:
     iterations: int
     solve_time_s: float
     lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    multipliers: dict = field(default_factory=dict)
+    lam_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def read_stats(stats: Mapping) -> tuple[str, str, int]:
@@ -281,7 +283,7 @@ def run_nlp(
         iterations=iterations,
         solve_time_s=elapsed,
         lam_g=-np.asarray(solution["lam_g"]).ravel(),
-        multipliers={k: np.asarray(solution[k]).ravel() for k in ("lam_x", "lam_g")},
+        lam_x=np.asarray(solution["lam_x"]).ravel(),
     )
 
 

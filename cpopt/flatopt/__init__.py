@@ -254,8 +254,8 @@ def resumed_multipliers(previous: tuple, nlp: FlatNLP) -> dict:
     old_nlp, run = previous
     lam_x = np.zeros(nlp.solver.size_in(0)[0])
     core = nlp.layout.size
-    lam_x[:core] = run.multipliers["lam_x"][:core]
-    old = dict(zip(_row_keys(old_nlp.rows), run.multipliers["lam_g"], strict=True))
+    lam_x[:core] = run.lam_x[:core]
+    old = dict(zip(_row_keys(old_nlp.rows), -run.lam_g, strict=True))  # NlpRun's sign back
     lam_g = np.array([old.get(key, 0.0) for key in _row_keys(nlp.rows)])
     return {"lam_x0": lam_x, "lam_g0": lam_g}
 
