@@ -327,8 +327,9 @@ def solve_for_signs(
         label = pattern + (f", refinement {round_ - 1}" if round_ > 1 else "")
         progress.stage(f"flat optimizer: {label}")
         tic = time.perf_counter()
-        resumed = previous is not None
-        nlp = build(problem, signs, grids, warm=seed is not None and not resumed, resume=resumed)
+        # every round of a seeded solve keeps its rows in normalised time: a refinement round
+        # takes the previous round's multipliers, which are in the rows' own units
+        nlp = build(problem, signs, grids, warm=seed is not None, resume=previous is not None)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous)
         left = None if limit is None else max(limit - iterations, 1)
