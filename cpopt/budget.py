@@ -19,6 +19,7 @@ block re-raises it as KeyboardInterrupt or :class:`TimeLimitExceeded`.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import signal
 import socket
@@ -85,6 +86,12 @@ def check_time() -> None:
     """Raise :class:`TimeLimitExceeded` when the active budget has run out (else nothing)."""
     if _State.budget is not None:
         _State.budget.check()
+
+
+def remaining() -> float:
+    """Seconds left in the active budget (``math.inf`` outside :func:`enforced`): a search
+    that can return its best plan so far plans its stages by it instead of being stopped."""
+    return math.inf if _State.budget is None else _State.budget.remaining()
 
 
 def check_stop() -> None:
@@ -244,4 +251,5 @@ __all__ = [
     "check_time",
     "enforced",
     "hard_stop_on_interrupt",
+    "remaining",
 ]

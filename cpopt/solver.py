@@ -4,6 +4,7 @@ return status mapped to cpopt's statuses, and typed solver statistics.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -210,13 +211,24 @@ class IterationReporter(ca.Callback):
     def get_sparsity_in(self, i: int) -> ca.Sparsity:
         return ca.Sparsity.dense(self.sizes.get(ca.nlpsol_out(i), 0), 1)
 
-    def start(self, label: str, limit: int | None = None, abandon=None, lbg=None, ubg=None) -> None:
+    def start(
+        self,
+        label: str,
+        limit: int | None = None,
+        abandon=None,
+        lbg=None,
+        ubg=None,
+        deadline: float = math.inf,
+    ) -> None:
         """Reset the count for a new run called ``label``, stopped after ``limit`` iterations
-        if given (a cap below the solver's own ``max_iter``, without rebuilding the solver), or
+        if given (a cap below the solver's own ``max_iter``, without rebuilding the solver),
         once ``abandon(iteration, objective, infeasibility)`` is true (a run another has
-        already beaten; the infeasibility is the largest violation of ``lbg <= g <= ubg``)."""
+        already beaten; the infeasibility is the largest violation of ``lbg <= g <= ubg``), or
+        once ``time.monotonic()`` passes ``deadline`` [s] (a search's own deadline, which
+        leaves it the time to return its best plan)."""
         self.count, self.label, self.stop, self.limit = 0, label, None, limit
         self.capped, self.abandon, self.abandoned = False, abandon, False
+        self.deadline, self.late = deadline, False
         self.bounds = (
             (np.asarray(lbg, float).ravel(), np.asarray(ubg, float).ravel())
             if lbg is not None and ubg is not None
@@ -241,7 +253,9 @@ class IterationReporter(ca.Callback):
         if self.abandon is not None:
             infeasibility = self.infeasibility(arg[2])
             self.abandoned = bool(self.abandon(self.count, float(arg[1]), infeasibility))
-        return [1 if self.stop is not None or self.capped or self.abandoned else 0]
+        self.late = time.monotonic() > self.deadline
+        stop = self.stop is not None or self.capped or self.abandoned or self.late
+        return [1 if stop else 0]
 
 
 def run_nlp(
@@ -250,6 +264,7 @@ def run_nlp(
     label: str = "",
     limit: int | None = None,
     abandon=None,
+    deadline: float = math.inf,
     **arguments,
 ) -> NlpRun:
     """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg).
@@ -258,12 +273,14 @@ def run_nlp(
     run in progress lines and above Ipopt's output (``--verbose``); ``limit`` caps the
     iterations through the reporter (a run stopped there is ``max_iterations``); ``abandon``
     stops it once ``abandon(iteration, objective, infeasibility)`` is true (status
-    ``dominated``; see :meth:`IterationReporter.start`).
+    ``dominated``), ``deadline`` once ``time.monotonic()`` passes it (status ``time_limit``;
+    see :meth:`IterationReporter.start`).
     """
     if label:
         progress.ipopt_run(label)
     if reporter is not None:
-        reporter.start(label, limit, abandon, arguments.get("lbg"), arguments.get("ubg"))
+        bounds = arguments.get("lbg"), arguments.get("ubg")
+        reporter.start(label, limit, abandon, *bounds, deadline=deadline)
     start = time.perf_counter()
     solution = solver(**arguments)
     elapsed = time.perf_counter() - start
@@ -275,6 +292,8 @@ def run_nlp(
         ipopt, status = f"Iteration_Cap_{limit}", "max_iterations"
     if reporter is not None and reporter.abandoned:
         ipopt, status = f"Abandoned_Dominated_At_{iterations}", "dominated"
+    if reporter is not None and reporter.late:
+        ipopt, status = f"Search_Deadline_At_{iterations}", "time_limit"
     return NlpRun(
         x=np.asarray(solution["x"]).ravel(),
         objective=float(solution["f"]),

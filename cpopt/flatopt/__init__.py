@@ -17,12 +17,15 @@ optimizer adds via states that reset xi to switch the sign (``gamma_switches``),
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
 from .. import flat, progress
+from ..budget import remaining
 from ..curves import with_end_jets
 from ..nodes import node_names, nodes_from_values, to_file
 from ..objectives import weights
@@ -31,6 +34,7 @@ from ..problem import Problem
 from ..solver import SolverStats, run_nlp
 from ..trajectory import Trajectory
 from . import switching
+from .continuation import applies, relaxed_bounds
 from .path_timing import chosen_points
 from .refine import (
     CERTIFICATION,
@@ -268,27 +272,61 @@ def pattern_label(signs: tuple[int, ...], switches: int = 0) -> str:
     return words + (f" ({switches} switch{'es' if switches > 1 else ''})" if switches else "")
 
 
-def _start(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed) -> np.ndarray:
-    """The first round's initial vector: from the seed trajectory if there is one, else the
-    closed form through the nodes."""
+def _start(
+    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed, fraction: float = 1.0
+) -> np.ndarray:
+    """The first round's initial vector: from the seed trajectory if there is one (fitted
+    with ``fraction`` of the margin gamma_min), else the closed form through the nodes."""
     if seed is None:
         return initial_guess(nlp, problem, signs)
-    return seeded_guess(nlp, problem, signs, seed)
+    return seeded_guess(nlp, problem, signs, seed, fraction * problem.spec.optimizer.gamma_min)
 
 
-def _round_arguments(nlp: FlatNLP, problem: Problem, signs, seed, previous) -> dict:
+def _round_arguments(
+    nlp: FlatNLP, problem: Problem, signs, seed, previous, fraction: float = 1.0
+) -> dict:
     """nlpsol's arguments for a round: the first starts from the seed trajectory or the closed
-    form; a refinement round from the previous round's solution (``previous``: its NLP and
-    run), its core variables lifted onto the new samples, with its multipliers."""
+    form; a refinement or continuation round from the previous round's solution
+    (``previous``: its NLP and run), its core variables lifted onto the new samples, with its
+    multipliers. A ``fraction`` below 1 asks |gamma| >= fraction gamma_min only
+    (:mod:`~cpopt.flatopt.continuation`)."""
     p = nlp.parameters(problem.values)
     lbx, ubx = _bounds(nlp, problem)
     arguments = {"p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+    if fraction < 1.0:
+        gamma_min = problem.spec.optimizer.gamma_min
+        arguments["lbg"], arguments["ubg"] = relaxed_bounds(nlp, gamma_min, fraction)
     if previous is None:
-        arguments["x0"] = _start(nlp, problem, signs, seed)
+        arguments["x0"] = _start(nlp, problem, signs, seed, fraction)
     else:
         arguments["x0"] = nlp.complete(previous[1].x, p)
         arguments.update(resumed_multipliers(previous, nlp))
     return arguments
+
+
+def continued(problem: Problem, signs, seed, grids, steps, deadline: float, limit=None):
+    """The continuation rounds of a seeded solve (:mod:`~cpopt.flatopt.continuation`): one
+    solve per fraction of gamma_min in ``steps``, each from the previous one. Returns the last
+    solved round (its NLP and run, None when the first did not solve) and the iterations and
+    times [s] spent (build, solve)."""
+    previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
+    for fraction in steps:
+        if time.monotonic() > deadline or (limit is not None and iterations >= limit):
+            break
+        label = f"{pattern_label(signs)}, continuation at {fraction:g} gamma_min"
+        progress.stage(f"flat optimizer: {label}")
+        tic = time.perf_counter()
+        nlp = build(problem, signs, grids, warm=True, resume=previous is not None)
+        build_time += time.perf_counter() - tic
+        arguments = _round_arguments(nlp, problem, signs, seed, previous, fraction)
+        left = None if limit is None else max(limit - iterations, 1)
+        run = run_nlp(nlp.solver, nlp.reporter, label, left, None, deadline, **arguments)
+        iterations += run.iterations
+        solve_time += run.solve_time_s
+        if run.status != "solved":
+            break
+        previous = (nlp, run)
+    return previous, iterations, build_time, solve_time
 
 
 def solve_for_signs(
@@ -298,6 +336,8 @@ def solve_for_signs(
     seed: Trajectory | None = None,
     limit: int | None = None,
     abandon=None,
+    deadline: float = math.inf,
+    steps: tuple[float, ...] = (),
 ) -> SignAttempt:
     """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
     the margin is certified.
@@ -318,10 +358,20 @@ def solve_for_signs(
     abandon : callable, optional
         ``abandon(iteration, objective, infeasibility) -> bool``: stop a run another pattern
         has clearly beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
+    deadline : float
+        ``time.monotonic()`` by which the solve returns what it has (status ``time_limit``
+        when no round solved by then; a refinement round cut there keeps the last solved one).
+    steps : tuple of float
+        Fractions of gamma_min (below 1, rising) a solve from a ``seed`` goes through before
+        the problem's own margin (:mod:`~cpopt.flatopt.continuation`); none by default.
     """
-    grids, previous = initial_grids(problem), None
-    build_time = solve_time = 0.0
-    iterations = refinements = 0
+    grids = initial_grids(problem)
+    previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
+    if seed is not None and steps and applies(problem):
+        previous, iterations, build_time, solve_time = continued(
+            problem, signs, seed, grids, steps, deadline, limit
+        )
+    refinements = 0
     pattern = pattern_label(signs, len(switches))
     for round_ in range(1, 2 + MAX_REFINEMENTS):
         label = pattern + (f", refinement {round_ - 1}" if round_ > 1 else "")
@@ -333,12 +383,17 @@ def solve_for_signs(
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous)
         left = None if limit is None else max(limit - iterations, 1)
-        run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, **arguments)
+        if round_ > 1:  # resumed from a solved round: a long run means the grid is not enough
+            left = min(left or REFINE_LIMIT, REFINE_LIMIT)
+        run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
         p = arguments["p"]
+        if run.status == "time_limit" and round_ > 1:  # the last solved round stands
+            nlp, run = previous
+            break
         plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
-        if run.status != "solved":
+        if run.status != "solved" or time.monotonic() > deadline:
             break
         dips = between_samples(problem, plan, times)
         gaps = quadrature_gaps(problem, plan, nlp)
@@ -367,6 +422,24 @@ def solve_for_signs(
     )
 
 
+REFINE_LIMIT = 400
+"""Most Ipopt iterations of a refinement round, which resumes from a solved round (7-50 on the
+bundled problems, more than 150 on a random RRR swing-up's seeded pattern, whose first round
+under-sampled its cost by 14 %; a random RPR swing-down's losing sign of gamma ran its 1000
+there and did not solve)."""
+RESERVE = 0.15
+"""The fraction of the time left when the optimizer starts that its searches leave to what
+follows them (sampling and verifying the plan), at most :data:`RESERVE_MAX` seconds."""
+RESERVE_MAX = 1.0
+
+
+def search_deadline() -> float:
+    """``time.monotonic()`` by which a search returns its best plan: the active time limit
+    (:func:`cpopt.budget.remaining`) less a reserve for verification (none without a limit)."""
+    left = remaining()
+    return time.monotonic() + left - min(RESERVE * left, RESERVE_MAX)
+
+
 def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
     """Optimize a problem's plan with Ipopt (see the module docstring).
 
@@ -388,12 +461,14 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
     """
     o = problem.spec.optimizer
     search, why_not = None, ""
+    deadline = search_deadline()
     if start is not None:
         progress.stage("flat optimizer: started from the given plan")
-        search, why_not = restart(problem, solve_for_signs, start)
+        search, why_not = restart(problem, partial(solve_for_signs, deadline=deadline), start)
+    solve = partial(solve_for_signs, deadline=deadline)
     if search is None:
         seeded = o.gamma_switches != 0 and o.switch_search == "seed"
-        search = (seeded_search if seeded else switching.search)(problem, solve_for_signs)
+        search = (seeded_search if seeded else switching.search)(problem, solve, deadline)
         if why_not:
             summary = f"{why_not}: the usual search; {search.summary}"
             search = replace(

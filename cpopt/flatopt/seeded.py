@@ -1,53 +1,70 @@
 """The switch search seeded by a coarse unconstrained collocation (``optimizer.switch_search:
-seed``, the default; route (b) of issue 11).
+seed``, the default; route (b) of issue 11, made to hold on problems nobody tuned it for in
+issue 30).
 
 1. **Seed** (:func:`cpopt.flatopt.seed.coarse_seed`): where the unconstrained optimum's gamma
    crosses zero gives the switch times and the signs between them.
-2. **Flat solve** of that pattern, started from the seed (B-spline coefficients fitted to its
-   CP, xi and eta from its state, :func:`cpopt.flatopt.warm_start.seeded_guess`), the switch
-   times held at the seed's crossings: a free switch time in a short phase scales every CP
-   derivative there by a power of the phase's length, and Ipopt was measured to wander for
-   hundreds of iterations with it (the benchmark transfer: 500 iterations, not converged, with
-   free times; 361 and solved, 1.0014 times collocation's cost, with held ones).
-3. **Polish**: the patterns one switch away (:func:`cpopt.flatopt.switching.neighbours`),
+2. **The bound**: the plans with the fewest switches the pins allow (one sign where nothing is
+   pinned; each allowed sign from the closed form, the seed's favourite first) are cheap and
+   bound everything after: no plan costlier than the best of them is returned, and a later
+   run that they dominate (:func:`~cpopt.flatopt.switching.dominated`) is abandoned.
+3. **Flat solve** of the seed's pattern, started from the seed (B-spline coefficients fitted to
+   its CP, xi and eta from its state, :func:`cpopt.flatopt.warm_start.seeded_guess`) with a
+   continuation in gamma_min (:data:`CONTINUATION`, :mod:`~cpopt.flatopt.continuation`): the
+   seed's |gamma| is small next to each crossing, and a fit that keeps gamma_min there starts
+   far from the seed. The switch times are held at the seed's crossings: a free switch time
+   in a short phase scales every CP derivative there by a power of the phase's length, and
+   Ipopt was measured to wander for hundreds of iterations with it. A pattern that does not
+   solve from the seed is tried once from the closed form.
+4. **Near the nodes**: a switch closer than :data:`NEAR` of the motion to the start, the goal
+   or a via state of the file gets alternatives: the pattern without it, and with it moved
+   that far away (:func:`near_alternatives`).
+5. **Polish**: the patterns one switch away (:func:`cpopt.flatopt.switching.neighbours`),
    each started from the plan solved so far and given at most
    :data:`~cpopt.flatopt.switching.POLISH_LIMIT` iterations and abandoned once clearly
-   dominated (:func:`~cpopt.flatopt.switching.dominated`), while the polish has spent less
-   than the flat solve did; the cheapest solved plan is kept. A plan that already costs no
-   more than :data:`POLISH_GAIN` above the seed (the unconstrained optimum on a coarse grid)
-   is not polished: no pattern can gain more than that (the benchmark transfer: 40427 against
-   the seed's 40741, where the polish spent 150 iterations, 2 s, and found nothing).
+   dominated, while the polish has spent less than the flat solve did. A plan that already
+   costs no more than :data:`POLISH_GAIN` above the seed is not polished.
 
-Nothing here raises on a valid problem: a seed that fails or suggests no allowed pattern hands
-the problem to the greedy search (:func:`cpopt.flatopt.switching.search`), which the summary
-says; so does a seeded pattern that neither its seeded start, the closed form nor the polish
-solved (the swing-up with the holding torque, links 1 and 2 heavier and T = 2 s: the seed's
-three switches ran to the iteration limit, the greedy search solves one).
+The search keeps the best plan of every stage (``solver.search.method`` names the stage that
+found it: ``one_sign``, ``seed``, ``near``, ``polish`` or ``greedy``, the greedy steps of
+:func:`~cpopt.flatopt.switching.grow` from the bound when the seed's pattern did not solve;
+the summary says why). It starts no
+stage after its deadline, and every solve stops there (the solve's own deadline), so it
+returns its best plan within the time limit. Nothing here raises on a valid problem.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from .. import progress
+from ..nodes import MIN_PHASE
 from ..problem import MAX_SWITCHES, Problem
 from ..trajectory import sample
 from .seed import Seed, coarse_seed
 from .switching import (
+    DOMINATED_EARLIEST,
     POLISH_LIMIT,
+    SEEDED_EARLIEST,
+    SIGN_WORDS,
     Pattern,
     Search,
     Solve,
+    agreeing,
     dominated,
+    first_attempts,
+    gamma_signs_on_grid,
+    grow,
+    needed_times,
     neighbours,
     pattern_of,
     preference,
     seed_pattern,
+    sign_assignments,
     with_switches,
 )
-from .switching import search as greedy_search
 
 
 @dataclass
@@ -86,14 +103,24 @@ def worth_polishing(problem: Problem, best, seed: Seed) -> bool:
     return best.objective > (1 + POLISH_GAIN) * seed.report.objective
 
 
+CONTINUATION = ()
+"""Fractions of gamma_min a solve from the seed goes through before gamma_min itself
+(:mod:`~cpopt.flatopt.continuation`)."""
+NEAR = 0.1
+"""A switch closer than this fraction of the motion to the start, the goal or a pinned via
+state gets alternatives (:func:`near_alternatives`)."""
+
+
 def solve_pattern(
-    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None
+    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None, steps=()
 ):
     """Solve one pattern with its switch times held, started from the trajectory ``start``
-    (from the closed form through the nodes when it is None); ``limit`` and ``abandon`` as in
-    :func:`cpopt.flatopt.solve_for_signs`."""
+    (from the closed form through the nodes when it is None); ``limit``, ``abandon`` and the
+    continuation ``steps`` as in :func:`cpopt.flatopt.solve_for_signs`."""
     augmented, switches = with_switches(problem, pattern.times, free_times=False)
-    return solve(augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon)
+    return solve(
+        augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon, steps=steps
+    )
 
 
 def _better(a, b) -> bool:
@@ -101,21 +128,35 @@ def _better(a, b) -> bool:
     return preference(a) > preference(b)
 
 
-def polish(solve: Solve, problem: Problem, best, budget: float, figures: Stage):
+def _bar(*attempts, seeded: bool = False):
+    """``abandon`` for a run measured against the cheapest solved attempt (None without one);
+    ``seeded`` for a run started from a seed fit (:data:`~cpopt.flatopt.switching.
+    SEEDED_EARLIEST`)."""
+    solved = [a.objective for a in attempts if a is not None and a.status == "solved"]
+    earliest = SEEDED_EARLIEST if seeded else DOMINATED_EARLIEST
+    return dominated(min(solved), earliest) if solved else None
+
+
+def polish(
+    solve: Solve, problem: Problem, best, budget: float, figures: Stage, bar=None, skip=None
+):
     """The cheapest plan among ``best`` and the patterns one switch away from it, each started
     from ``best``'s plan and capped at POLISH_LIMIT iterations, tried while the polish has
-    spent less than ``budget`` seconds. Returns the best attempt and every attempt made."""
+    spent less than ``budget`` seconds; a run is abandoned once ``best`` or the attempt ``bar``
+    (the one-sign bound) dominates it; a pattern ``skip(pattern)`` is true of is not tried.
+    Returns the best attempt and every attempt made."""
     attempts = []
     start = sample(best.plan)
     for pattern in neighbours(problem, pattern_of(best)):
         if figures.time_s >= budget:
             break
+        if skip is not None and skip(pattern):
+            continue
         progress.stage(f"switch search: polish, {len(pattern.times)} switch(es)")
         tic = time.perf_counter()
         # a neighbour still at twice the plan's cost after 30 iterations will not win (the
         # swing-up with two switches: both neighbours ran to the limit, 6.9 s, at 1e5-1e6)
-        abandon = dominated(best.objective)
-        attempt = solve_pattern(solve, problem, pattern, start, POLISH_LIMIT, abandon)
+        attempt = solve_pattern(solve, problem, pattern, start, POLISH_LIMIT, _bar(best, bar))
         figures.add(attempt, tic)
         attempts.append(attempt)
         if attempt.status == "solved" and _better(attempt, best):
@@ -123,7 +164,74 @@ def polish(solve: Solve, problem: Problem, best, budget: float, figures: Stage):
     return best, attempts
 
 
-def search(problem: Problem, solve: Solve) -> Search:
+def near_alternatives(problem: Problem, pattern: Pattern, wanted) -> list[Pattern]:
+    """For each switch closer than :data:`NEAR` of the motion to the start, the goal or a via
+    state of the file: the pattern without it (the signs that agree with ``wanted`` the
+    longest) and the pattern with it moved that far from the node."""
+    duration = problem.nodes[-1].t
+    ends = [n.t for n in problem.nodes]
+    out: list[Pattern] = []
+    for j, t in enumerate(pattern.times):
+        node = min(ends, key=lambda e: abs(e - t))
+        if abs(node - t) >= NEAR * duration:
+            continue
+        kept = tuple(x for i, x in enumerate(pattern.times) if i != j)
+        moved = node + math.copysign(NEAR * duration, t - node)
+        options = [agreeing(problem, kept, wanted)]
+        if 0 < moved < duration and all(abs(moved - x) > MIN_PHASE for x in kept):
+            times = tuple(sorted((*kept, moved)))
+            signs = pattern.signs if times.index(moved) == j else None
+            options.append(Pattern(times, signs) if signs else None)
+        out += [p for p in options if p is not None and p not in out and p != pattern]
+    return out
+
+
+STAGES = ("bound", "flat", "near", "polish", "greedy")
+"""The search's stages after the seed, as ``solver.search`` names their figures."""
+
+
+@dataclass
+class Run:
+    """What the stages of one search share: the problem, the solve, the seed, the one-sign
+    bound, every attempt so far, each stage's figures and the deadline
+    (``time.monotonic()``)."""
+
+    problem: Problem
+    solve: Solve
+    seed: Seed
+    deadline: float = math.inf
+    bound: object = None
+    tried: list = field(default_factory=list)
+    stages: dict = field(default_factory=lambda: {name: Stage() for name in STAGES})
+
+    def late(self) -> bool:
+        """True once the deadline has passed: no stage starts after it."""
+        return time.monotonic() > self.deadline
+
+    def solved_before(self, pattern: Pattern) -> bool:
+        """True when an attempt solved ``pattern``'s signs with switches within MIN_PHASE of
+        its times (a plan one sign agrees with already is not solved again)."""
+        return any(
+            a.status == "solved"
+            and tuple(SIGN_WORDS[w] for w in a.signs) == pattern.signs
+            and len(a.switch_times) == len(pattern.times)
+            and all(
+                abs(x - y) < MIN_PHASE for x, y in zip(a.switch_times, pattern.times, strict=False)
+            )
+            for a in self.tried
+        )
+
+    def attempt(self, stage: str, pattern: Pattern, start, **options):
+        """Solve ``pattern`` from the trajectory ``start`` (:func:`solve_pattern`), counted in
+        ``stage`` and kept among the attempts."""
+        tic = time.perf_counter()
+        result = solve_pattern(self.solve, self.problem, pattern, start, **options)
+        self.stages[stage].add(result, tic)
+        self.tried.append(result)
+        return result
+
+
+def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search:
     """The seeded switch search (see the module docstring).
 
     Parameters
@@ -131,84 +239,170 @@ def search(problem: Problem, solve: Solve) -> Search:
     problem : Problem
         A problem with ``gamma_switches`` other than 0.
     solve : callable
-        ``solve(problem, signs, switches, seed=None, limit=None) -> SignAttempt``
-        (:func:`cpopt.flatopt.solve_for_signs`).
+        ``solve(problem, signs, switches, seed=None, limit=None, abandon=None, steps=())
+        -> SignAttempt`` (:func:`cpopt.flatopt.solve_for_signs`, its deadline bound).
+    deadline : float
+        ``time.monotonic()`` after which no stage starts: the best plan so far is returned.
 
     Returns
     -------
     Search
-        Every attempt, the best, a summary and the figures of the seed, the flat solve and the
-        polish (``solution.json``: ``solver.search``).
+        Every attempt, the best, a summary and the figures of the seed, the one-sign bound,
+        the flat solve, the alternatives near the nodes and the polish (``solution.json``:
+        ``solver.search``).
     """
     wanted = problem.spec.optimizer.gamma_switches
     budget = MAX_SWITCHES if wanted == "auto" else wanted
     progress.stage("switch search: coarse collocation seed")
-    seed = coarse_seed(problem)
+    run = Run(problem, solve, coarse_seed(problem), deadline)
+    run.bound = _one_sign_bound(run)
+    seed = run.seed
     pattern = seed_pattern(problem, seed, budget) if seed.trajectory is not None else None
-    if pattern is None:
-        return _greedy_after(problem, solve, seed)
-    flat, tried = Stage(), []
-    tic = time.perf_counter()
-    best = solve_pattern(solve, problem, pattern, seed.trajectory)
-    flat.add(best, tic)
-    tried.append(best)
-    if best.status != "solved":  # the closed form through the seed's switch states
-        tic = time.perf_counter()
-        retry = solve_pattern(solve, problem, pattern, None)
-        flat.add(retry, tic)
-        tried.append(retry)
-        best = retry if _better(retry, best) else best
-    polished = Stage()
-    if worth_polishing(problem, best, seed):
-        best, more = polish(solve, problem, best, flat.time_s, polished)
-        tried += more
-        finish = f"polish tried {polished.tried} neighbour(s)"
+    notes = []
+    best, method = run.bound, "one_sign"
+    if pattern is None or pattern.times == needed_times(problem):
+        notes.append("the seed suggests no switch beyond the fixed signs'")
+    elif run.late():
+        notes.append("search deadline reached before the seed's pattern")
     else:
-        finish = "no polish" + (
-            f" (within {POLISH_GAIN:.0%} of the seed's cost)" if best.status == "solved" else ""
-        )
-    method = "seed"
-    if best.status != "solved":  # the greedy search starts from fewer switches
-        best, method, said = _greedy_if_better(problem, solve, best, tried)
-        finish += f"; not solved, then greedy search: {said}"
-    summary = (
-        f"{len(best.switch_times)} switch(es) ({wanted} asked): seed crossings at "
-        f"{_times(seed.report.crossings)}, pattern {_times(pattern.times)}; {finish}"
+        seeded = _seeded_attempt(run, pattern)
+        if _better(seeded, best):
+            best, method = seeded, "seed"
+        notes.append(_verdict(seeded, run.bound))
+        best, method = _near(run, pattern, best, method)
+        best, method = _polished(run, best, method, notes)
+        if seeded.status != "solved" and method == "one_sign" and not run.late():
+            best, method = _grown(run, best, method, notes)
+    if run.late():
+        notes.append("search deadline reached")
+    summary = _summary(wanted, seed, pattern, best, method, run.bound, notes)
+    figures = {"method": method, "summary": summary, "seed": seed.report.as_dict()}
+    figures.update({name: stage.as_dict() for name, stage in run.stages.items()})
+    return Search(tuple(run.tried), best, summary, figures)
+
+
+def _one_sign_bound(run: Run):
+    """The best plan with the fewest switches the pins allow (one sign where nothing is
+    pinned), each allowed sign solved from the closed form, the seed's favourite first."""
+    progress.stage("switch search: the one-sign plans (the bound)")
+    times = needed_times(run.problem)
+    patterns = [Pattern(times, signs) for signs in sign_assignments(run.problem, times)]
+    tic = time.perf_counter()
+    attempts = first_attempts(run.solve, run.problem, patterns, run.seed)
+    for attempt in attempts:
+        run.stages["bound"].add(attempt, tic)
+        tic = time.perf_counter()
+    run.tried += attempts
+    best = max(attempts, key=preference)
+    if best.status == "solved" or run.seed.trajectory is None:
+        return best
+    # a fair chance: the closed form through the nodes may leave the arm's reach (its
+    # torques are then not numbers) where the seed, a joint-space plan, stays inside
+    for pattern in patterns:
+        if run.late():
+            break
+        retry = run.attempt("bound", pattern, run.seed.trajectory, abandon=_bar(best, seeded=True))
+        best = max(best, retry, key=preference)
+    return best
+
+
+def _seeded_attempt(run: Run, pattern: Pattern):
+    """The seed's pattern from the seed (with continuation in gamma_min), then from the closed
+    form when that did not solve; abandoned once the bound dominates it."""
+    progress.stage(f"switch search: the seed's pattern, {len(pattern.times)} switch(es)")
+    bar = _bar(run.bound, seeded=True)
+    best = run.attempt("flat", pattern, run.seed.trajectory, abandon=bar, steps=CONTINUATION)
+    if best.status not in ("solved", "dominated", "time_limit") and not run.late():
+        retry = run.attempt("flat", pattern, None, abandon=_bar(run.bound))
+        best = retry if _better(retry, best) else best
+    return best
+
+
+def _near(run: Run, pattern: Pattern, best, method: str):
+    """The alternatives of switches near a node (:func:`near_alternatives`), started from the
+    seed; the best plan and the method that found it."""
+    wanted = gamma_signs_on_grid(run.problem, run.seed.trajectory)
+    for alternative in near_alternatives(run.problem, pattern, wanted):
+        if run.late():
+            break
+        if run.solved_before(alternative):
+            continue
+        progress.stage(f"switch search: near a node, {len(alternative.times)} switch(es)")
+        attempt = run.attempt(
+            "near", alternative, run.seed.trajectory, abandon=_bar(best, run.bound, seeded=True),
+            steps=CONTINUATION,
+        )  # fmt: skip
+        if _better(attempt, best):
+            best, method = attempt, "near"
+    return best, method
+
+
+def _polished(run: Run, best, method: str, notes: list):
+    """The polish around the best plan with switches, when it may still gain
+    (:func:`worth_polishing`)."""
+    if not best.switch_times or run.late():
+        return best, method
+    if not worth_polishing(run.problem, best, run.seed):
+        notes.append(f"no polish (within {POLISH_GAIN:.0%} of the seed's cost)")
+        return best, method
+    budget = run.stages["flat"].time_s
+    polished, more = polish(
+        run.solve, run.problem, best, budget, run.stages["polish"], run.bound, run.solved_before
     )
-    figures = {
-        "method": method,
-        "summary": summary,
-        "seed": seed.report.as_dict(),
-        "flat": flat.as_dict(),
-        "polish": polished.as_dict(),
-    }
-    return Search(tuple(tried), best, summary, figures)
+    run.tried += more
+    notes.append(f"polish tried {run.stages['polish'].tried} neighbour(s)")
+    return (polished, "polish") if polished is not best else (best, method)
 
 
-def _greedy_if_better(problem: Problem, solve: Solve, best, tried: list) -> tuple:
-    """After the seed's pattern did not solve: the greedy search's best if it beats ``best``
-    (its attempts added to ``tried``), the method that found the plan kept, and the greedy
-    search's summary."""
-    progress.stage("switch search: the seed's pattern did not solve, greedy search")
-    result = greedy_search(problem, solve)
-    tried += list(result.attempts)
-    if _better(result.best, best):
-        return result.best, "greedy", result.summary
-    return best, "seed", result.summary
+def _grown(run: Run, best, method: str, notes: list):
+    """The greedy steps from the bound (:func:`~cpopt.flatopt.switching.grow`), when the
+    seed's pattern did not solve: a switch more where the one-sign plan's margin binds."""
+    progress.stage("switch search: the seed's pattern did not solve, greedy steps")
+    tic = time.perf_counter()
+    # judged like a seeded run: a greedy candidate of transfer_switch was 82 times the
+    # one-sign plan at iteration 10 and then solved a quarter below it
+    grown, more, said = grow(run.problem, run.solve, run.bound, run.deadline, SEEDED_EARLIEST)
+    for attempt in more:
+        run.stages["greedy"].add(attempt, tic)
+        tic = time.perf_counter()
+    run.tried += more
+    notes.append(f"greedy steps from the bound: {said}")
+    return (grown, "greedy") if _better(grown, best) else (best, method)
 
 
-def _greedy_after(problem: Problem, solve: Solve, seed: Seed) -> Search:
-    """The greedy search, when the seed failed or the pins allow none of its patterns."""
-    found = seed.report
-    why = "failed" if seed.trajectory is None else "suggested no pattern the fixed signs allow"
-    result = greedy_search(problem, solve)
-    summary = f"seed {why} ({found.status}): greedy search; " + result.summary
-    figures = {"method": "greedy", "summary": summary, "seed": found.as_dict()}
-    return Search(result.attempts, result.best, summary, figures)
+def _verdict(seeded, bound) -> str:
+    """What became of the seed's pattern, against the bound."""
+    if seeded.status == "dominated":
+        return f"the seed's pattern dominated by the one-sign bound ({seeded.ipopt_status})"
+    if seeded.status != "solved":
+        return f"the seed's pattern did not solve ({seeded.status})"
+    if bound.status == "solved":
+        return f"the seed's pattern at {seeded.objective / bound.objective:.3g} x the bound"
+    return "the seed's pattern solved, the one-sign plans did not"
+
+
+def _summary(wanted, seed, pattern, best, method, bound, notes) -> str:
+    """One line: the plan kept, which stage found it, the bound, what became of the rest."""
+    shown = _times(pattern.times) if pattern is not None else "none"
+    bound_word = f"{bound.objective:.6g}" if bound.status == "solved" else bound.status
+    return (
+        f"{len(best.switch_times)} switch(es) ({wanted} asked), found by {method}: "
+        f"objective {best.objective:.6g}, one-sign bound {bound_word}; seed crossings at "
+        f"{_times(seed.report.crossings)}, pattern {shown}; " + "; ".join(notes)
+    )
 
 
 def _times(times) -> str:
     return "[" + ", ".join(f"{t:.3f}" for t in times) + "] s"
 
 
-__all__ = ["Stage", "polish", "search", "solve_pattern"]
+__all__ = [
+    "CONTINUATION",
+    "NEAR",
+    "Run",
+    "Stage",
+    "near_alternatives",
+    "polish",
+    "search",
+    "solve_pattern",
+]

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -368,7 +369,7 @@ def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
     return out
 
 
-def _solve(solve: Solve, problem: Problem, pattern: Pattern, abandon=None):
+def solve_from_nodes(solve: Solve, problem: Problem, pattern: Pattern, abandon=None):
     """Solve one pattern from the closed form through the file's nodes and switch states
     interpolated between them. (Starting from the previous plan was measured worse: where the
     new pattern flips the sign of a long stretch its CP curve asks for the link turned by half
@@ -398,6 +399,11 @@ def dominated_factor(iteration: int) -> float:
     return DOMINATED_FACTOR * max(1.0, (DOMINATED_AFTER / iteration) ** 2)
 
 
+SEEDED_EARLIEST = DOMINATED_AFTER
+"""Iterations a run started from a seed fit gets before it may be abandoned."""
+SEEDED_FEASIBLE = 1e-2
+"""The largest violation of its constraints at which a run started from a seed fit is judged
+by its objective (its rows are in the phases' normalised time)."""
 STALLED_SPAN = 5
 """Iterations over which a run is seen to have stalled (:func:`dominated`)."""
 STALLED_FALL = 0.1
@@ -408,7 +414,7 @@ STALLED_INFEASIBILITY = 1e-6
 :data:`STALLED_SPAN` iterations before, has stalled infeasible."""
 
 
-def dominated(best: float):
+def dominated(best: float, earliest: int = DOMINATED_EARLIEST):
     """``abandon(iteration, objective, infeasibility)`` for a run that another pattern, solved
     with objective ``best``, has clearly beaten, after DOMINATED_EARLIEST iterations:
 
@@ -428,6 +434,14 @@ def dominated(best: float):
     not use it: on ``transfer_switch`` (``switch_search: greedy``) one was 82 times the
     one-sign plan at iteration 10, its infeasibility growing from 1.3e3 to 5.7e3, and then
     solved a quarter below it; an early abandonment there would have kept one sign.
+    A run started from a seed fit (``earliest`` :data:`SEEDED_EARLIEST`) is judged only from
+    then on, and only once nearly feasible (violations below :data:`SEEDED_FEASIBLE`), by the
+    stall rule: its start is far above where it lands, its objective swings while it is
+    infeasible, and so does its infeasibility (the seed's pattern of ``transfer_switch``
+    starts at 200 times the one-sign plan's objective, is at 20 times it with its
+    infeasibility grown from 0.01 to 22 at iteration 10, at 0.7 times it at 30, and solves at
+    half of it at 208; a random RPR swing-down's is at 5.7 times the one-sign plan's at
+    iteration 30, 1.9 at 34, 3.1 at 40, and solves at 0.45 at 98).
     """
     objectives: list[float] = []
     infeasibilities: list[float] = []
@@ -441,8 +455,12 @@ def dominated(best: float):
     def abandon(iteration: int, objective: float, infeasibility: float = 0.0) -> bool:
         objectives.append(objective)
         infeasibilities.append(infeasibility)
-        if iteration < DOMINATED_EARLIEST:
+        if iteration < earliest:
             return False
+        if earliest > DOMINATED_EARLIEST:  # a seeded run: judged once nearly feasible
+            stalled = objective > (1 - STALLED_FALL) * earlier(objectives)
+            nearly = infeasibility <= SEEDED_FEASIBLE
+            return nearly and stalled and above(DOMINATED_FACTOR, objective)
         if above(dominated_factor(iteration), objective):
             return True
         if above(DOMINATED_FACTOR, objective) and objective > (1 - STALLED_FALL) * earlier(
@@ -456,26 +474,29 @@ def dominated(best: float):
     return abandon
 
 
-def seed_order(problem: Problem, patterns: list[Pattern]) -> list[Pattern]:
-    """The patterns with the one the coarse unconstrained collocation agrees with first (the
-    lean seed only, 0.3 s; where it does not apply, or fails, the order stays)."""
+def seed_order(problem: Problem, patterns: list[Pattern], seed: Seed | None = None) -> list:
+    """The patterns with the one the coarse unconstrained collocation ``seed`` agrees with
+    first (without one, the lean seed only, 0.3 s; where it does not apply, or fails, the
+    order stays)."""
     if len(patterns) < 2:
         return patterns
-    seed = coarse_seed(problem, lean_only=True)
+    seed = coarse_seed(problem, lean_only=True) if seed is None else seed
     if seed.trajectory is None:
         return patterns
     wanted = gamma_signs_on_grid(problem, seed.trajectory)
     return sorted(patterns, key=lambda p: -agreement(problem, p, wanted))
 
 
-def first_attempts(solve: Solve, problem: Problem, patterns: list[Pattern]) -> list:
-    """Solve the first patterns, the seed's favourite first; a later run is abandoned once a
-    solved one dominates it (:func:`dominated`)."""
+def first_attempts(
+    solve: Solve, problem: Problem, patterns: list[Pattern], seed: Seed | None = None
+) -> list:
+    """Solve the first patterns, the seed's favourite first (:func:`seed_order`); a later run
+    is abandoned once a solved one dominates it (:func:`dominated`)."""
     attempts = []
-    for pattern in seed_order(problem, patterns):
+    for pattern in seed_order(problem, patterns, seed):
         solved = [a.objective for a in attempts if a.status == "solved"]
         abandon = dominated(min(solved)) if solved else None
-        attempts.append(_solve(solve, problem, pattern, abandon))
+        attempts.append(solve_from_nodes(solve, problem, pattern, abandon))
     return attempts
 
 
@@ -518,7 +539,7 @@ def candidates(problem: Problem, best, budget: int) -> list[Pattern]:
     return out
 
 
-def search(problem: Problem, solve: Solve) -> Search:
+def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search:
     """Solve the patterns of signs a problem allows and, with ``gamma_switches``, add switches
     where the margin binds (see the module docstring).
 
@@ -528,6 +549,8 @@ def search(problem: Problem, solve: Solve) -> Search:
         The problem.
     solve : callable
         ``solve(problem, signs, switches) -> SignAttempt``.
+    deadline : float
+        ``time.monotonic()`` after which no pattern with a switch more is tried.
 
     Returns
     -------
@@ -540,22 +563,39 @@ def search(problem: Problem, solve: Solve) -> Search:
     first = [Pattern(times, signs) for signs in sign_assignments(problem, times)]
     attempts = first_attempts(solve, problem, first)
     best = _best(attempts)
-    summary = f"{len(times)} switch(es) needed by the fixed signs"
+    best, more, said = grow(problem, solve, best, deadline)
+    attempts += more
+    summary = f"{len(best.switch_times)} switch(es) ({wanted} asked): "
+    summary += f"{len(times)} switch(es) needed by the fixed signs; {said}"
+    return Search(tuple(attempts), best, summary, {"method": "greedy", "summary": summary})
+
+
+def grow(
+    problem: Problem, solve: Solve, best, deadline: float = math.inf, earliest: int | None = None
+) -> tuple:
+    """The greedy steps from a solved plan ``best``: add a switch where the margin binds
+    (:func:`candidates`), each candidate solved from the closed form, while a switch more
+    lowers the cost (by :data:`GAIN` with ``auto``) and ``gamma_switches`` allows one more.
+    With ``earliest`` a candidate is abandoned once ``best`` dominates it
+    (:func:`dominated` from that iteration). Returns the best attempt, the attempts made and
+    why the steps stopped."""
+    wanted = problem.spec.optimizer.gamma_switches
+    budget = MAX_SWITCHES if wanted == "auto" else wanted
+    attempts: list = []
     while best.status == "solved" and len(best.switch_times) < budget:
+        if time.monotonic() > deadline:
+            return best, attempts, "search deadline reached"
         patterns = candidates(problem, best, budget)
         if not patterns:
-            summary += "; no place left for a switch"
-            break
-        tried = [_solve(solve, problem, pattern) for pattern in patterns]
+            return best, attempts, "no place left for a switch"
+        abandon = None if earliest is None else dominated(best.objective, earliest)
+        tried = [solve_from_nodes(solve, problem, pattern, abandon) for pattern in patterns]
         attempts += tried
         better = _best(tried)
         gain = (best.objective - better.objective) / max(abs(best.objective), 1e-12)
         if better.status != "solved":
-            summary += "; no pattern with a switch more was solved: stopped"
-            break
+            return best, attempts, "no pattern with a switch more was solved: stopped"
         if gain <= 0 or (wanted == "auto" and gain < GAIN):
-            summary += f"; a switch more lowered the cost by {gain:.2%}: stopped"
-            break
+            return best, attempts, f"a switch more lowered the cost by {gain:.2%}: stopped"
         best = better
-    summary = f"{len(best.switch_times)} switch(es) ({wanted} asked): " + summary
-    return Search(tuple(attempts), best, summary, {"method": "greedy", "summary": summary})
+    return best, attempts, f"{len(best.switch_times)} switch(es): the most allowed"
