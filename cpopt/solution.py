@@ -13,12 +13,30 @@ import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+import numpy as np
+
 from . import results
 from .problem import Problem
+from .safe_yaml import echo
 from .trajectory import Trajectory, sample_at
 
 PLOT_KINDS = ("third_link", "arm", "torques", "gamma", "tracking")
 """The figures :meth:`Solution.plot` draws (those ``cpopt solve --plot`` writes as PNG)."""
+
+
+def _shown(value) -> str:
+    """A given value in a message: its type and a short repr."""
+    return f"{type(value).__name__} {echo(value)}"
+
+
+def _check_axes(ax) -> None:
+    """Refuse an ``ax`` that is neither None, a matplotlib Axes nor a non-empty list of them."""
+    from matplotlib.axes import Axes
+
+    items = list(np.ravel(np.asarray(ax, dtype=object))) if ax is not None else []
+    if ax is None or (items and all(isinstance(a, Axes) for a in items)):
+        return
+    raise ValueError(f"ax must be a matplotlib Axes or a list of them, got {_shown(ax)}")
 
 
 @dataclass(frozen=True, repr=False)
@@ -40,7 +58,18 @@ class Solution(results.Solution):
 
     @classmethod
     def of(cls, record: results.Solution, problem: Problem | None = None) -> Solution:
-        """The solution of a pipeline's record and the problem it solves."""
+        """The solution of a pipeline's record and the problem it solves.
+
+        Raises
+        ------
+        ValueError
+            For a ``record`` that is not a :class:`cpopt.results.Solution` or a ``problem``
+            that is not a :class:`~cpopt.problem.Problem`.
+        """
+        if not isinstance(record, results.Solution):
+            raise ValueError(f"record must be a cpopt.results.Solution, got {_shown(record)}")
+        if problem is not None and not isinstance(problem, Problem):
+            raise ValueError(f"problem must be a Problem or None, got {_shown(problem)}")
         values = {f.name: getattr(record, f.name) for f in fields(results.Solution)}
         return cls(**values, problem=problem)
 
@@ -98,7 +127,21 @@ class Solution(results.Solution):
         -------
         list of Path
             The files written.
+
+        Raises
+        ------
+        ValueError
+            For a ``directory`` that is not a folder name, or a place a folder cannot be
+            (an existing file, a path under a file), before anything is written.
         """
+        from .output import OutputError, check_directory
+
+        if not isinstance(directory, str | Path) or not str(directory).strip():
+            raise ValueError(f"directory must be a folder name, got {_shown(directory)}")
+        try:
+            check_directory(directory)
+        except OutputError as err:
+            raise ValueError(f"directory {err}") from None
         return results.write_solution(self, directory)
 
     def plot(self, kind: str = "third_link", ax=None):
@@ -122,13 +165,15 @@ class Solution(results.Solution):
         Raises
         ------
         ValueError
-            For an unknown kind, a solution without a sampled plan, or ``tracking`` for a
-            plan that was not tracked.
+            For an unknown kind, an ``ax`` that is not a matplotlib Axes (or a list of them),
+            a solution without a sampled plan, or ``tracking`` for a plan that was not
+            tracked.
         """
         from . import plotting
 
-        if kind not in PLOT_KINDS:
-            raise ValueError(f"kind must be one of {', '.join(PLOT_KINDS)}; got {kind!r}")
+        if not isinstance(kind, str) or kind not in PLOT_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(PLOT_KINDS)}; got {echo(kind)}")
+        _check_axes(ax)
         if self.trajectory is None:
             raise ValueError(f"{self.name}: no sampled plan to plot (status {self.status})")
         limits, gamma_min = self._drawn_limits()
