@@ -50,7 +50,8 @@ def _path(text: str) -> str:
     return text
 
 
-def _parser() -> argparse.ArgumentParser:
+def make_parser() -> argparse.ArgumentParser:
+    """The parser of every verb and option (public: the tests walk it to try each option)."""
     parser = _Parser(
         prog="cpopt",
         description=(
@@ -139,7 +140,8 @@ def _sweep_parser(sub) -> None:
     sweep.add_argument(
         "--scheduler",
         metavar="ADDRESS",
-        help="use the running Dask cluster at ADDRESS (tcp://host:8786) instead of a local one",
+        help="use the running Dask cluster at ADDRESS ([tcp://]host:port) instead of a local "
+        "one; it must accept a connection within a few seconds, before any work",
     )
     sweep.add_argument(
         "--time-limit",
@@ -337,7 +339,10 @@ def main(argv: list[str] | None = None) -> int:
     grace = SWEEP_GRACE if words[:1] == ["sweep"] else GRACE
     try:
         with hard_stop_on_interrupt(_interrupted, grace=grace, code=EXIT_INTERRUPTED):
-            args = _parser().parse_args(argv)
+            try:
+                args = make_parser().parse_args(argv)
+            except SystemExit as done:  # --help, --version or a bad option: argparse has spoken
+                return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
             if args.command == "check":
                 return _cmd_check(args.files)
             if args.command == "list":
