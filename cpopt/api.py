@@ -13,6 +13,7 @@ from pathlib import Path
 from . import pipeline
 from .plan import CPPlan
 from .problem import Problem, ProblemError, read_problem
+from .problem.build import check_seconds
 from .progress import Progress, reporting
 from .safe_yaml import echo
 from .solution import Solution
@@ -123,6 +124,7 @@ def solve(
         problem = problem.replace(planner=planner)
     plan = _start_plan(start, problem)
     if time_limit is not None:
+        check_seconds(time_limit, problem.source, "time_limit")
         problem = problem.with_time_limit(time_limit)
     # shown on stderr when asked, terminal or not (a notebook's stderr is not a terminal)
     with reporting(Progress(quiet=not progress, verbose=progress), problem.name):

@@ -29,13 +29,19 @@ def _shown(value) -> str:
     return f"{type(value).__name__} {echo(value)}"
 
 
-def _check_axes(ax) -> None:
-    """Refuse an ``ax`` that is neither None, a matplotlib Axes nor a non-empty list of them."""
+def _check_axes(ax, counts: tuple[int, ...]) -> None:
+    """Refuse an ``ax`` that is neither None nor ``counts`` matplotlib Axes (a list of them,
+    or one alone where one is allowed); an empty ``counts`` allows any number."""
     from matplotlib.axes import Axes
 
-    items = list(np.ravel(np.asarray(ax, dtype=object))) if ax is not None else []
-    if ax is None or (items and all(isinstance(a, Axes) for a in items)):
+    if ax is None:
         return
+    items = list(np.ravel(np.asarray(ax, dtype=object)))
+    if items and all(isinstance(a, Axes) for a in items):
+        if not counts or len(items) in counts:
+            return
+        allowed = " or ".join(str(c) for c in dict.fromkeys(counts))
+        raise ValueError(f"ax must be {allowed} matplotlib Axes here, got {len(items)}")
     raise ValueError(f"ax must be a matplotlib Axes or a list of them, got {_shown(ax)}")
 
 
@@ -165,17 +171,20 @@ class Solution(results.Solution):
         Raises
         ------
         ValueError
-            For an unknown kind, an ``ax`` that is not a matplotlib Axes (or a list of them),
-            a solution without a sampled plan, or ``tracking`` for a plan that was not
+            For an unknown kind, an ``ax`` that is not a matplotlib Axes (or a list of one per
+            phase), a solution without a sampled plan, or ``tracking`` for a plan that was not
             tracked.
         """
         from . import plotting
 
         if not isinstance(kind, str) or kind not in PLOT_KINDS:
             raise ValueError(f"kind must be one of {', '.join(PLOT_KINDS)}; got {echo(kind)}")
-        _check_axes(ax)
         if self.trajectory is None:
             raise ValueError(f"{self.name}: no sampled plan to plot (status {self.status})")
+        phases = int(self.trajectory.phase.max()) + 1
+        # one panel per phase (or one for all) for the strobes, one panel for the curves
+        counts = {"third_link": (1, phases), "arm": (1, phases), "tracking": ()}
+        _check_axes(ax, counts.get(kind, (1,)))
         limits, gamma_min = self._drawn_limits()
         if kind == "torques":
             return plotting.plot_torques(self, ax, limits=limits)

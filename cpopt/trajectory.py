@@ -80,8 +80,8 @@ def checked_times(t, start: float, end: float) -> np.ndarray:
     Raises
     ------
     ValueError
-        Naming ``t``, what was given and what was expected: not numbers, more than one
-        dimension, a non-finite time or one outside the plan.
+        Naming ``t``, what was given and what was expected: not numbers, no times, more
+        than one dimension, a non-finite time or one outside the plan.
     """
     expected = f"expected a time or a 1-D array of times in [{start:g}, {end:g}] s"
     try:
@@ -94,9 +94,11 @@ def checked_times(t, start: float, end: float) -> np.ndarray:
     if times.ndim > 1:
         raise ValueError(f"t: {expected}, got an array of shape {times.shape}")
     times = np.atleast_1d(times)
+    if not times.size:
+        raise ValueError(f"t: {expected}, got no times")
     if not np.all(np.isfinite(times)):
         raise ValueError(f"t: {expected}, got a non-finite time")
-    if times.size and not (np.all(times >= start - 1e-12) and np.all(times <= end + 1e-12)):
+    if not (np.all(times >= start - 1e-12) and np.all(times <= end + 1e-12)):
         raise ValueError(f"t: times must lie within the plan, [{start:g}, {end:g}] s")
     return times
 

@@ -120,15 +120,9 @@ class Problem:
         Raises
         ------
         ProblemError
-            For a value that is not a finite number of seconds > 0 (``err.path`` is
-            ``time_limit``, the name :func:`cpopt.solve` gives it).
+            For a value that is not a finite number of seconds > 0.
         """
-        if not is_real(seconds) or not (math.isfinite(seconds) and seconds > 0):
-            raise ProblemError(
-                self.source,
-                "time_limit",
-                f"expected a finite number of seconds > 0, got {echo(seconds)}",
-            )
+        check_seconds(seconds, self.source, "seconds")
         return self._with_solver(max_time=float(seconds))
 
     def _with_solver(self, **update) -> Problem:
@@ -138,9 +132,19 @@ class Problem:
         return replace(self, spec=spec)
 
 
-def is_real(value) -> bool:
-    """True for a real number (Python's or NumPy's), not for True/False."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+def check_seconds(value, source: str, argument: str) -> None:
+    """Refuse a duration that is not a finite number of seconds > 0 (True/False included).
+
+    Raises
+    ------
+    ProblemError
+        With ``argument`` as its key path (``time_limit``).
+    """
+    real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if not real or not (math.isfinite(value) and value > 0):
+        raise ProblemError(
+            source, argument, f"expected a finite number of seconds > 0, got {echo(value)}"
+        )
 
 
 def parse_problem(data, source: str = "<python>", name: str | None = None) -> Problem:
