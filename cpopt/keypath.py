@@ -86,6 +86,19 @@ def check_disjoint(paths: list[str]) -> None:
                 raise KeyPathError(first, f"also given as {second} ({what}): give each value once")
 
 
+def leaves(data, parts: tuple = ()):
+    """``(parts, value)`` of every value in nested mappings and lists that is neither, its key
+    parts as :func:`parse_key_path` gives them (``("arm", "links", 2, "mass")``)."""
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from leaves(value, (*parts, key))
+    elif isinstance(data, list):
+        for index, value in enumerate(data):
+            yield from leaves(value, (*parts, index))
+    else:
+        yield parts, data
+
+
 def with_values(data: dict, values: dict[str, object]) -> dict:
     """A deep copy of ``data`` with each key path of ``values`` set to its value.
 
@@ -135,4 +148,11 @@ def _prefix(path: str, depth: int) -> str:
     return key_path(parts) if parts else "the top level"
 
 
-__all__ = ["KeyPathError", "check_disjoint", "get_value", "parse_key_path", "with_values"]
+__all__ = [
+    "KeyPathError",
+    "check_disjoint",
+    "get_value",
+    "leaves",
+    "parse_key_path",
+    "with_values",
+]

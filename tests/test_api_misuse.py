@@ -17,7 +17,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
-from conftest import PROBLEMS
+from conftest import PROBLEMS, forbid
 
 import cpopt
 
@@ -249,12 +249,7 @@ def _tree(root: Path) -> list[str]:
 @pytest.fixture
 def no_work(monkeypatch):
     """Fail a call that plans or tracks (refusal comes first)."""
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("work started before the bad argument was refused")
-
-    monkeypatch.setattr("cpopt.pipeline.solve", refuse)
-    monkeypatch.setattr("cpopt.api.track_problem", refuse)
+    forbid(monkeypatch, "cpopt.pipeline.solve", "cpopt.api.track_problem")
 
 
 def _call(function, good: dict, parameter: inspect.Parameter, value, tmp: Path):

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from conftest import PROBLEMS, ROOT
+from conftest import PROBLEMS, ROOT, forbid
 
 from cpopt.cli import MAX_WORKERS, main, make_parser
+from cpopt.keypath import leaves
 from cpopt.problem.keytypes import BOOLEAN, NUMBER, WORD, key_type
 from cpopt.safe_yaml import key_path, read_yaml
 
@@ -79,23 +80,12 @@ def _addresses() -> list[str]:
     return [*malformed, "127.0.0.1:{port}", "tcp://127.0.0.1:{port}"]
 
 
-def _leaves(data, parts=()):
-    """(key path, value) of every scalar of problem data."""
-    if isinstance(data, dict):
-        for key, value in data.items():
-            yield from _leaves(value, (*parts, key))
-    elif isinstance(data, list):
-        for index, value in enumerate(data):
-            yield from _leaves(value, (*parts, index))
-    else:
-        yield key_path(parts), data
-
-
 def sample_keys() -> dict[str, tuple[str, object]]:
     """One key of the base file per kind of value (number, choice, text, boolean), with its
     value there."""
     found = {}
-    for path, value in _leaves(read_yaml(BASE)):
+    for parts, value in leaves(read_yaml(BASE)):
+        path = key_path(parts)
         kind = key_type(path)
         if kind is None or len(kind.kinds) != 1 or path == "name":
             continue
@@ -281,12 +271,7 @@ def _tree(root: Path) -> dict[str, bytes | None]:
 @pytest.fixture
 def no_work(monkeypatch):
     """Fail a test that starts a cluster or solves a problem (refusal comes first)."""
-
-    def refuse(*args, **kwargs):
-        raise AssertionError("work started before the bad value was refused")
-
-    monkeypatch.setattr("cpopt.sweep.engine.connect", refuse)
-    monkeypatch.setattr("cpopt.isolate.solve_isolated", refuse)
+    forbid(monkeypatch, "cpopt.sweep.engine.connect", "cpopt.isolate.solve_isolated")
 
 
 def error_line(err: str) -> str:
