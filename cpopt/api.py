@@ -13,7 +13,9 @@ from pathlib import Path
 from . import pipeline
 from .plan import CPPlan
 from .problem import Problem, ProblemError, read_problem
+from .problem.build import check_seconds
 from .progress import Progress, reporting
+from .safe_yaml import echo
 from .solution import Solution
 from .tracking import TrackingOutcome, TrackingRefused, track_problem
 
@@ -40,10 +42,27 @@ def load(path_or_dict: str | Path | dict, **overrides) -> Problem:
     Raises
     ------
     ProblemError
-        For an unreadable file, a key path that cannot be set, or content the file format
-        refuses: the message names the file and the key path (``err.source``, ``err.path``).
+        For an unreadable file, a key path that cannot be set, two overrides of one value
+        (``motion`` and ``motion.duration``), or content the file format refuses: the message
+        names the file and the key path (``err.source``, ``err.path``); for a
+        ``path_or_dict`` that is neither a file name nor a dict, it names that argument.
     """
+    _check_source(path_or_dict, "path_or_dict", "cpopt.load")
     return read_problem(path_or_dict, overrides)
+
+
+def _check_source(value, argument: str, function: str) -> None:
+    """Refuse what is neither a problem file's name nor problem data, before reading it."""
+    if isinstance(value, dict) or (isinstance(value, Path) and str(value) != "."):
+        return
+    if isinstance(value, str) and value.strip():
+        return
+    raise ProblemError(
+        function,
+        argument,
+        "expected a problem file (str or Path) or a dict of problem data, got "
+        f"{type(value).__name__} {echo(value)}",
+    )
 
 
 def solve(
@@ -87,7 +106,9 @@ def solve(
     Raises
     ------
     ProblemError
-        For a problem that does not load or a planner the problem cannot use.
+        For a problem that does not load, a planner the problem cannot use, a time limit
+        that is not a finite number of seconds > 0 or a ``progress`` that is not True/False
+        (the message names the argument); all before any work.
     ValueError
         For a ``start`` that is not a solution with a plan, or a planner other than
         ``optimize`` with one.
@@ -95,12 +116,15 @@ def solve(
         On Ctrl-C.
     """
     problem = _problem(problem_or_path)
+    if not isinstance(progress, bool):
+        raise ProblemError(
+            problem.source, "progress", f"expected True or False, got {echo(progress)}"
+        )
     if planner is not None and planner != problem.planner:
         problem = problem.replace(planner=planner)
     plan = _start_plan(start, problem)
     if time_limit is not None:
-        if not time_limit > 0:
-            raise ProblemError(problem.source, "time_limit", f"must be > 0 s, got {time_limit}")
+        check_seconds(time_limit, problem.source, "time_limit")
         problem = problem.with_time_limit(time_limit)
     # shown on stderr when asked, terminal or not (a notebook's stderr is not a terminal)
     with reporting(Progress(quiet=not progress, verbose=progress), problem.name):
@@ -126,6 +150,7 @@ def _start_plan(start, problem: Problem):
 def _problem(problem_or_path) -> Problem:
     if isinstance(problem_or_path, Problem):
         return problem_or_path
+    _check_source(problem_or_path, "problem_or_path", "cpopt.solve")
     return read_problem(problem_or_path)
 
 
@@ -166,8 +191,13 @@ def track(
         For settings the ``tracking`` block refuses, naming the key path
         (``tracking.plant.links[2].mass``).
     ValueError
-        For a solution without a plan or without its problem.
+        For a ``solution`` that is not a Solution, or one without a plan or its problem.
     """
+    if not isinstance(solution, Solution):
+        raise ValueError(
+            "solution must be a Solution of cpopt.solve, got "
+            f"{type(solution).__name__} {echo(solution)}"
+        )
     if solution.plan is None:
         raise ValueError(f"{solution.name}: no plan to track (status {solution.status})")
     if getattr(solution, "problem", None) is None:

@@ -19,6 +19,9 @@ import threading
 from pathlib import Path
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+MAX_WORKERS = 1024
+"""Most worker processes of a local cluster: more is a typo (each is a Python process of
+about 150 MB), refused before any is started."""
 SWEEP_GRACE = 15.0
 """Seconds ``cpopt sweep`` gets after Ctrl-C to cancel its tasks and close its cluster before
 the process is ended (other commands get :data:`cpopt.budget.GRACE`)."""
@@ -40,7 +43,15 @@ def _seconds(text: str) -> float:
     return value
 
 
-def _parser() -> argparse.ArgumentParser:
+def _path(text: str) -> str:
+    """A file or folder name: not empty (``Path("")`` is the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a file or folder name, got {text!r}")
+    return text
+
+
+def make_parser() -> argparse.ArgumentParser:
+    """The parser of every verb and option (public: the tests walk it to try each option)."""
     parser = _Parser(
         prog="cpopt",
         description=(
@@ -53,9 +64,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"cpopt {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     solve = sub.add_parser("solve", help="solve problem files and write their results")
-    solve.add_argument("files", nargs="+", metavar="FILE", help="YAML problem files")
+    solve.add_argument("files", nargs="+", type=_path, metavar="FILE", help="YAML problem files")
     solve.add_argument(
-        "--out", default="out", metavar="DIR", help="results go to DIR/<name>/ (default: out)"
+        "--out",
+        default="out",
+        type=_path,
+        metavar="DIR",
+        help="results go to DIR/<name>/ (default: out)",
     )
     solve.add_argument("--plot", action="store_true", help="also write PNG figures")
     solve.add_argument("--animate", action="store_true", help="also write arm.gif")
@@ -74,7 +89,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     _sweep_parser(sub)
     check = sub.add_parser("check", help="validate problem files without solving")
-    check.add_argument("files", nargs="+", metavar="FILE")
+    check.add_argument("files", nargs="+", type=_path, metavar="FILE")
     sub.add_parser("list", help="show the bundled problems")
     return parser
 
@@ -84,8 +99,10 @@ def _workers(text: str) -> int:
         value = int(text)
     except ValueError:
         value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of workers >= 1, got {text!r}")
+    if not 1 <= value <= MAX_WORKERS:
+        raise argparse.ArgumentTypeError(
+            f"expected a whole number of workers from 1 to {MAX_WORKERS}, got {text!r}"
+        )
     return value
 
 
@@ -95,7 +112,9 @@ def _sweep_parser(sub) -> None:
         help="solve a grid of variants of one problem file on Dask (a local cluster or a "
         "running one)",
     )
-    sweep.add_argument("base", metavar="BASE.yaml", help="the problem file the points vary")
+    sweep.add_argument(
+        "base", type=_path, metavar="BASE.yaml", help="the problem file the points vary"
+    )
     sweep.add_argument(
         "--vary",
         action="append",
@@ -106,7 +125,11 @@ def _sweep_parser(sub) -> None:
         "--vary make a full grid",
     )
     sweep.add_argument(
-        "--out", default="out", metavar="DIR", help="DIR/<point>/ and DIR/sweep.csv (default: out)"
+        "--out",
+        default="out",
+        type=_path,
+        metavar="DIR",
+        help="DIR/<point>/ and DIR/sweep.csv (default: out)",
     )
     sweep.add_argument(
         "--workers",
@@ -117,7 +140,8 @@ def _sweep_parser(sub) -> None:
     sweep.add_argument(
         "--scheduler",
         metavar="ADDRESS",
-        help="use the running Dask cluster at ADDRESS (tcp://host:8786) instead of a local one",
+        help="use the running Dask cluster at ADDRESS ([tcp://]host:port) instead of a local "
+        "one; it must accept a connection within a few seconds, before any work",
     )
     sweep.add_argument(
         "--time-limit",
@@ -315,7 +339,10 @@ def main(argv: list[str] | None = None) -> int:
     grace = SWEEP_GRACE if words[:1] == ["sweep"] else GRACE
     try:
         with hard_stop_on_interrupt(_interrupted, grace=grace, code=EXIT_INTERRUPTED):
-            args = _parser().parse_args(argv)
+            try:
+                args = make_parser().parse_args(argv)
+            except SystemExit as done:  # --help, --version or a bad option: argparse has spoken
+                return done.code if isinstance(done.code, int) else EXIT_BAD_INPUT
             if args.command == "check":
                 return _cmd_check(args.files)
             if args.command == "list":

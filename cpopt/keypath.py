@@ -68,6 +68,37 @@ def get_value(data, path: str):
     return value
 
 
+def check_disjoint(paths: list[str]) -> None:
+    """Refuse key paths that set one value twice: the same path (however spelt) or one path
+    inside another (``motion`` and ``motion.duration``), whose values would contradict.
+
+    Raises
+    ------
+    KeyPathError
+        Naming both paths, or a malformed one.
+    """
+    parsed = [(path, parse_key_path(path)) for path in paths]
+    for i, (first, a) in enumerate(parsed):
+        for second, b in parsed[i + 1 :]:
+            shorter, longer = sorted((a, b), key=len)
+            if longer[: len(shorter)] == shorter:
+                what = "the same key" if a == b else "one inside the other"
+                raise KeyPathError(first, f"also given as {second} ({what}): give each value once")
+
+
+def leaves(data, parts: tuple = ()):
+    """``(parts, value)`` of every value in nested mappings and lists that is neither, its key
+    parts as :func:`parse_key_path` gives them (``("arm", "links", 2, "mass")``)."""
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from leaves(value, (*parts, key))
+    elif isinstance(data, list):
+        for index, value in enumerate(data):
+            yield from leaves(value, (*parts, index))
+    else:
+        yield parts, data
+
+
 def with_values(data: dict, values: dict[str, object]) -> dict:
     """A deep copy of ``data`` with each key path of ``values`` set to its value.
 
@@ -77,8 +108,10 @@ def with_values(data: dict, values: dict[str, object]) -> dict:
     Raises
     ------
     KeyPathError
-        When a path cannot be set (an index past a list's end, a key into a number, ...).
+        When a path cannot be set (an index past a list's end, a key into a number, ...), or
+        two paths set one value (:func:`check_disjoint`).
     """
+    check_disjoint(list(values))
     out = copy.deepcopy(data) if data is not None else {}
     for path, value in values.items():
         parts = parse_key_path(path)
@@ -115,4 +148,11 @@ def _prefix(path: str, depth: int) -> str:
     return key_path(parts) if parts else "the top level"
 
 
-__all__ = ["KeyPathError", "get_value", "parse_key_path", "with_values"]
+__all__ = [
+    "KeyPathError",
+    "check_disjoint",
+    "get_value",
+    "leaves",
+    "parse_key_path",
+    "with_values",
+]

@@ -13,12 +13,36 @@ import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+import numpy as np
+
 from . import results
 from .problem import Problem
+from .safe_yaml import echo
 from .trajectory import Trajectory, sample_at
 
 PLOT_KINDS = ("third_link", "arm", "torques", "gamma", "tracking")
 """The figures :meth:`Solution.plot` draws (those ``cpopt solve --plot`` writes as PNG)."""
+
+
+def _shown(value) -> str:
+    """A given value in a message: its type and a short repr."""
+    return f"{type(value).__name__} {echo(value)}"
+
+
+def _check_axes(ax, counts: tuple[int, ...]) -> None:
+    """Refuse an ``ax`` that is neither None nor ``counts`` matplotlib Axes (a list of them,
+    or one alone where one is allowed); an empty ``counts`` allows any number."""
+    from matplotlib.axes import Axes
+
+    if ax is None:
+        return
+    items = list(np.ravel(np.asarray(ax, dtype=object)))
+    if items and all(isinstance(a, Axes) for a in items):
+        if not counts or len(items) in counts:
+            return
+        allowed = " or ".join(str(c) for c in dict.fromkeys(counts))
+        raise ValueError(f"ax must be {allowed} matplotlib Axes here, got {len(items)}")
+    raise ValueError(f"ax must be a matplotlib Axes or a list of them, got {_shown(ax)}")
 
 
 @dataclass(frozen=True, repr=False)
@@ -40,7 +64,18 @@ class Solution(results.Solution):
 
     @classmethod
     def of(cls, record: results.Solution, problem: Problem | None = None) -> Solution:
-        """The solution of a pipeline's record and the problem it solves."""
+        """The solution of a pipeline's record and the problem it solves.
+
+        Raises
+        ------
+        ValueError
+            For a ``record`` that is not a :class:`cpopt.results.Solution` or a ``problem``
+            that is not a :class:`~cpopt.problem.Problem`.
+        """
+        if not isinstance(record, results.Solution):
+            raise ValueError(f"record must be a cpopt.results.Solution, got {_shown(record)}")
+        if problem is not None and not isinstance(problem, Problem):
+            raise ValueError(f"problem must be a Problem or None, got {_shown(problem)}")
         values = {f.name: getattr(record, f.name) for f in fields(results.Solution)}
         return cls(**values, problem=problem)
 
@@ -98,7 +133,21 @@ class Solution(results.Solution):
         -------
         list of Path
             The files written.
+
+        Raises
+        ------
+        ValueError
+            For a ``directory`` that is not a folder name, or a place a folder cannot be
+            (an existing file, a path under a file), before anything is written.
         """
+        from .output import OutputError, check_directory
+
+        if not isinstance(directory, str | Path) or not str(directory).strip():
+            raise ValueError(f"directory must be a folder name, got {_shown(directory)}")
+        try:
+            check_directory(directory)
+        except OutputError as err:
+            raise ValueError(f"directory {err}") from None
         return results.write_solution(self, directory)
 
     def plot(self, kind: str = "third_link", ax=None):
@@ -122,15 +171,20 @@ class Solution(results.Solution):
         Raises
         ------
         ValueError
-            For an unknown kind, a solution without a sampled plan, or ``tracking`` for a
-            plan that was not tracked.
+            For an unknown kind, an ``ax`` that is not a matplotlib Axes (or a list of one per
+            phase), a solution without a sampled plan, or ``tracking`` for a plan that was not
+            tracked.
         """
         from . import plotting
 
-        if kind not in PLOT_KINDS:
-            raise ValueError(f"kind must be one of {', '.join(PLOT_KINDS)}; got {kind!r}")
+        if not isinstance(kind, str) or kind not in PLOT_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(PLOT_KINDS)}; got {echo(kind)}")
         if self.trajectory is None:
             raise ValueError(f"{self.name}: no sampled plan to plot (status {self.status})")
+        phases = int(self.trajectory.phase.max()) + 1
+        # one panel per phase (or one for all) for the strobes, one panel for the curves
+        counts = {"third_link": (1, phases), "arm": (1, phases), "tracking": ()}
+        _check_axes(ax, counts.get(kind, (1,)))
         limits, gamma_min = self._drawn_limits()
         if kind == "torques":
             return plotting.plot_torques(self, ax, limits=limits)

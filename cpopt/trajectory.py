@@ -11,6 +11,7 @@ from .dynamics import holding_torque, inverse_dynamics
 from .kinematics import inverse_derivatives, inverse_position
 from .nodes import node_names
 from .plan import CPPlan
+from .safe_yaml import echo
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,35 @@ def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
     return _completed(plan, t, phase, cp, z)
 
 
+def checked_times(t, start: float, end: float) -> np.ndarray:
+    """Times to sample a plan at, as a 1-D float array: finite and within ``[start, end]`` s.
+
+    Raises
+    ------
+    ValueError
+        Naming ``t``, what was given and what was expected: not numbers, no times, more
+        than one dimension, a non-finite time or one outside the plan.
+    """
+    expected = f"expected a time or a 1-D array of times in [{start:g}, {end:g}] s"
+    try:
+        given = np.asarray(t)
+        times = given.astype(float)
+    except (TypeError, ValueError):
+        raise ValueError(f"t: {expected}, got {echo(t)}") from None
+    if given.dtype.kind not in "iuf":  # booleans, strings of digits, objects
+        raise ValueError(f"t: {expected}, got {echo(t)}")
+    if times.ndim > 1:
+        raise ValueError(f"t: {expected}, got an array of shape {times.shape}")
+    times = np.atleast_1d(times)
+    if not times.size:
+        raise ValueError(f"t: {expected}, got no times")
+    if not np.all(np.isfinite(times)):
+        raise ValueError(f"t: {expected}, got a non-finite time")
+    if not (np.all(times >= start - 1e-12) and np.all(times <= end + 1e-12)):
+        raise ValueError(f"t: times must lie within the plan, [{start:g}, {end:g}] s")
+    return times
+
+
 def sample_at(plan: CPPlan, t, along: Trajectory) -> Trajectory:
     """A plan at any times in its interval, on the angle branches of a sampled trajectory.
 
@@ -95,12 +125,9 @@ def sample_at(plan: CPPlan, t, along: Trajectory) -> Trajectory:
     Raises
     ------
     ValueError
-        For a time outside the plan.
+        For times that are not numbers, or lie outside the plan (:func:`checked_times`).
     """
-    t = np.atleast_1d(np.asarray(t, float)).ravel()
-    t0, t1 = plan.t0, plan.t0 + plan.duration
-    if t.size and not (np.all(t >= t0 - 1e-12) and np.all(t <= t1 + 1e-12)):
-        raise ValueError(f"times must lie within the plan, [{t0:g}, {t1:g}] s")
+    t = checked_times(t, plan.t0, plan.t0 + plan.duration)
     starts = np.array([ph.curve.t0 for ph in plan.phases])
     phase = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(plan.phases) - 1)
     cp, z = flat_states(plan, t, phase)

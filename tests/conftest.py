@@ -43,3 +43,14 @@ def paper_solutions():
     """Solutions of the three paper problems, keyed by file stem."""
     names = ("paper_transfer", "paper_transfer_slow", "paper_swing_up")
     return {n: solve(load_problem(PROBLEMS / f"{n}.yaml")) for n in names}
+
+
+def forbid(monkeypatch, *targets: str) -> None:
+    """Make each of ``targets`` (dotted names) fail the test when called: the work a refusal
+    must come before (solving, starting a cluster)."""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("work started before the bad input was refused")
+
+    for target in targets:
+        monkeypatch.setattr(target, refuse)

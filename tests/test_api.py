@@ -94,7 +94,7 @@ def test_a_bad_override_is_a_problem_error_naming_the_key_path(overrides, path, 
 def test_load_refuses_what_is_not_a_problem(tmp_path):
     with pytest.raises(cpopt.ProblemError, match=r"nope\.yaml"):
         cpopt.load(tmp_path / "nope.yaml")
-    with pytest.raises(TypeError, match="a problem file or a dict"):
+    with pytest.raises(cpopt.ProblemError, match="path_or_dict: expected a problem file"):
         cpopt.load(42)
 
 

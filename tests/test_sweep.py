@@ -81,6 +81,38 @@ def test_bad_spec_says_what_was_expected(spec, words):
         parse_spec(spec)
 
 
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("motion.goal.x=0.1,abc", "motion.goal.x=0.1,abc: 'abc' is not a finite number"),
+        ("motion.duration=true,false", "'true' is not a finite number"),
+        ("motion.duration=0x10", "'0x10' is not a finite number"),
+        ("motion.duration=1,nan", "each value must be a finite number, got 'nan'"),
+        ("planner=optimize,1", "'1' is not one of closed_form, optimize, collocation"),
+        ("planner=1:3:3", "a range gives numbers; the key takes one of closed_form, optimize"),
+        ("optimizer.smooth_torque=yes", "'yes' is not true or false"),
+        ("optimizer.gamma_switches=auto,2", "values of mixed kinds (numbers and words)"),
+        ("nope=1,abc", "values of mixed kinds (numbers and words)"),
+        ("name=a,b", "the sweep names each point after its values"),
+    ],
+)
+def test_vary_values_are_read_as_the_key_takes_them(text, words):
+    with pytest.raises(SweepError, match=re.escape(words)):
+        parse_vary(text)
+
+
+def test_vary_reads_numbers_choices_and_booleans_by_the_keys_type():
+    assert parse_vary("optimizer.smooth_torque=True,false").values == (True, False)
+    assert parse_vary("planner=optimize,collocation").values == ("optimize", "collocation")
+    assert parse_vary("optimizer.gamma_switches=0:2:3").values == (0, 1, 2)
+    assert parse_vary("arm.branch=elbow_up,1").values == ("elbow_up", "1")  # text stays text
+    varies = [parse_vary("arm.links[2]=1"), parse_vary("arm.links[2].mass=1,2")]
+    with pytest.raises(SweepError, match=r"arm.links\[2\]: also given as arm.links\[2\].mass"):
+        build_points(TRANSFER, varies)
+    with pytest.raises(SweepError, match=r"--time-limit 5 both set each point's optimizer\.solver"):
+        build_points(TRANSFER, [parse_vary("optimizer.solver.max_time=1,2")], time_limit=5.0)
+
+
 def test_vary_needs_a_key_path_an_equals_sign_and_distinct_values():
     assert parse_vary("arm.links[2].mass=1,2") == Vary("arm.links[2].mass", (1, 2))
     for text, words in [

@@ -17,7 +17,7 @@ from ..mapping import mapped
 from ..plan import Node
 from ..robot import Arm
 from ..simulate import SimulationResult, cp_of, goal_error, pose_states
-from ..trajectory import Metrics, Trajectory, gamma_crossings
+from ..trajectory import Metrics, Trajectory, checked_times, gamma_crossings
 
 REFINE = 8
 """Samples per interval of the collocation polynomials in the trajectory."""
@@ -127,13 +127,11 @@ def joint_sample_at(plan: JointPlan, t) -> Trajectory:
     Raises
     ------
     ValueError
-        For a time outside the plan.
+        For times that are not numbers, or lie outside the plan (:func:`checked_times`).
     """
-    t = np.atleast_1d(np.asarray(t, float)).ravel()
     f = plan.fine
     tf = f["t"]
-    if t.size and not (np.all(t >= tf[0] - 1e-12) and np.all(t <= tf[-1] + 1e-12)):
-        raise ValueError(f"times must lie within the plan, [{tf[0]:g}, {tf[-1]:g}] s")
+    t = checked_times(t, tf[0], tf[-1])
     # the segment [tf[i], tf[i + 1]] holding each time (a repeated time is skipped)
     i = np.clip(np.searchsorted(tf, t, side="right") - 1, 0, tf.size - 2)
     i = np.where(tf[i + 1] > tf[i], i, np.maximum(i - 1, 0))

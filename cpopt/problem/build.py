@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import copy
+import math
+import numbers
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
@@ -14,7 +16,7 @@ from ..limits import Limit, arm_limits
 from ..nodes import node_names, node_values, si_bounds
 from ..plan import Node
 from ..robot import Arm
-from ..safe_yaml import YamlInputError, read_yaml
+from ..safe_yaml import YamlInputError, echo, read_yaml
 from .gamma import GammaSide, gamma_sides
 from .messages import check_removed_keys, describe_error
 from .schema import ProblemError, ProblemSpec, safe_name
@@ -97,11 +99,30 @@ class Problem:
         return parse_problem(overridden(self.data, overrides, self.source), self.source, self.name)
 
     def with_print_level(self, level: int) -> Problem:
-        """A copy whose Ipopt output level is ``level`` (0 silent .. 12)."""
-        return self._with_solver(print_level=level)
+        """A copy whose Ipopt output level is ``level`` (0 silent .. 12).
+
+        Raises
+        ------
+        ProblemError
+            For a level that is not a whole number 0..12.
+        """
+        if not (isinstance(level, numbers.Integral) and not isinstance(level, bool)) or not (
+            0 <= level <= 12
+        ):
+            raise ProblemError(
+                self.source, "level", f"expected a whole number 0..12, got {echo(level)}"
+            )
+        return self._with_solver(print_level=int(level))
 
     def with_time_limit(self, seconds: float) -> Problem:
-        """A copy whose wall-clock limit ``optimizer.solver.max_time`` is ``seconds``."""
+        """A copy whose wall-clock limit ``optimizer.solver.max_time`` is ``seconds``.
+
+        Raises
+        ------
+        ProblemError
+            For a value that is not a finite number of seconds > 0.
+        """
+        check_seconds(seconds, self.source, "seconds")
         return self._with_solver(max_time=float(seconds))
 
     def _with_solver(self, **update) -> Problem:
@@ -109,6 +130,21 @@ class Problem:
         solver = opt.solver.model_copy(update=update)
         spec = self.spec.model_copy(update={"optimizer": opt.model_copy(update={"solver": solver})})
         return replace(self, spec=spec)
+
+
+def check_seconds(value, source: str, argument: str) -> None:
+    """Refuse a duration that is not a finite number of seconds > 0 (True/False included).
+
+    Raises
+    ------
+    ProblemError
+        With ``argument`` as its key path (``time_limit``).
+    """
+    real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    if not real or not (math.isfinite(value) and value > 0):
+        raise ProblemError(
+            source, argument, f"expected a finite number of seconds > 0, got {echo(value)}"
+        )
 
 
 def parse_problem(data, source: str = "<python>", name: str | None = None) -> Problem:

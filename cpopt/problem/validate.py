@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from ..dynamics import holding_torque
+from ..keypath import leaves
 from ..kinematics import ReachError, inverse_derivatives, inverse_position
 from ..limits import torque_headroom
 from ..nodes import free_value_names
@@ -145,18 +146,6 @@ PHYSICAL_RANGES = {
 them the dynamics are so ill-conditioned that a solve or a simulation would only crawl."""
 
 
-def _leaves(data, parts=()):
-    """(key parts, value) of every number in nested dicts and lists."""
-    if isinstance(data, dict):
-        for key, value in data.items():
-            yield from _leaves(value, (*parts, key))
-    elif isinstance(data, list):
-        for i, value in enumerate(data):
-            yield from _leaves(value, (*parts, i))
-    elif isinstance(data, int | float) and not isinstance(data, bool):
-        yield parts, float(data)
-
-
 def _range_key(parts) -> str:
     pattern = key_path(["[]" if isinstance(p, int) else p for p in parts]).replace(".[]", "[]")
     for node in ("motion.start.", "motion.goal.", "motion.via[]."):
@@ -174,7 +163,10 @@ def _check_ranges(spec: ProblemSpec, source: str) -> None:
             f"must be > 0, got {gamma_min:g}: the flat map is singular at gamma = 0 (theta and "
             "the torques are undetermined there), so a plan keeps |gamma| >= gamma_min > 0",
         )
-    for parts, value in _leaves(spec.model_dump(exclude={"optimizer": {"free"}})):
+    for parts, value in leaves(spec.model_dump(exclude={"optimizer": {"free"}})):
+        if not isinstance(value, int | float) or isinstance(value, bool):
+            continue
+        value = float(value)
         bounds = PHYSICAL_RANGES.get(_range_key(parts))
         if bounds is not None and not bounds[0] <= value <= bounds[1]:
             lo, hi, unit = bounds

@@ -1,7 +1,8 @@
 """``cpopt sweep``: validate every point, run the missing ones on Dask, keep the table current.
 
-Order of work: the ``--vary`` options and every point of the grid are validated and the output
-folders checked (any fault: :class:`~cpopt.sweep.spec.SweepError`, nothing is run); with
+Order of work: the options, the ``--vary`` values and every point of the grid are validated,
+the output folders checked and a ``--scheduler`` asked for a connection (any fault:
+:class:`~cpopt.sweep.spec.SweepError`, nothing is written or run); with
 ``--resume`` the points whose results are complete for the same problem are taken from their
 folders; the cluster starts and runs the others, each result written as it arrives (the
 point's folder, then ``sweep.csv`` whole); ``sweep.png`` last, with ``--plot``.
@@ -14,7 +15,8 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..output import OutputError, check_problem_directory, make_directory
+from ..output import OutputError, check_directory, check_problem_directory, make_directory
+from .address import check_scheduler, parse_scheduler
 from .bar import SweepBar
 from .spec import Point, SweepError, build_points, parse_vary
 from .table import TABLE, completed, read_table, write_point, write_table
@@ -35,8 +37,9 @@ class SweepResult:
 
 
 def _check_outputs(out: Path, points: list[Point]) -> None:
+    """Refuse an output folder that cannot hold the sweep's files; nothing is created."""
     try:
-        make_directory(out)
+        check_directory(out)
         for name in (TABLE, PLOT):
             if (out / name).is_dir():
                 raise OutputError(f"{out / name}: is a directory")
@@ -79,13 +82,22 @@ def sweep(args: argparse.Namespace) -> SweepResult:
     KeyboardInterrupt
         On Ctrl-C, after the cluster is closed (finished points are on disk).
     """
-    if args.workers is not None and args.scheduler:
+    if args.workers is not None and args.scheduler is not None:
         raise SweepError("--workers starts a local cluster; --scheduler uses a running one")
+    scheduler = args.scheduler
+    if scheduler is not None:
+        parse_scheduler(scheduler)  # its syntax before the slower checks
     varies = [parse_vary(text) for text in args.vary]
     keys = [v.key for v in varies]
     points = build_points(args.base, varies, args.time_limit)
     out = Path(args.out)
     _check_outputs(out, points)
+    if scheduler is not None:
+        scheduler = check_scheduler(scheduler).url
+    try:
+        make_directory(out)
+    except OutputError as err:
+        raise SweepError(f"--out {err}") from None
     rows = {}
     if args.resume:
         rows = {p.index: row for p in points if (row := completed(p, out)) is not None}
@@ -105,7 +117,7 @@ def sweep(args: argparse.Namespace) -> SweepResult:
             print(_line(row), flush=True)
             bar.advance(point.name, row["status"])
 
-        with engine.connect(args.workers, args.scheduler) as client:
+        with engine.connect(args.workers, scheduler) as client:
             bar.begin(engine.slots(client))
             try:
                 engine.run(client, todo, args.base, done)

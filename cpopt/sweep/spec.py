@@ -26,12 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..keypath import KeyPathError, parse_key_path, with_values
+from ..keypath import KeyPathError, check_disjoint, parse_key_path, with_values
 from ..problem import NAME, ProblemError, parse_problem, safe_name
+from ..problem.keytypes import BOOLEAN, NUMBER, WORD, KeyType, key_type
 from ..safe_yaml import YamlInputError, echo, parse_yaml, read_yaml
 
 MAX_POINTS = 100_000
 """Most points of one sweep (a typo like ``0:1:1e9`` is refused before any work)."""
+MAX_TIME = "optimizer.solver.max_time"
+"""The key ``--time-limit`` sets in every point."""
 
 
 class SweepError(ValueError):
@@ -109,23 +112,73 @@ def _random(parts: list[str], spec: str) -> tuple:
     return tuple(float(v) for v in np.random.default_rng(seed).uniform(a, b, n))
 
 
-def _listed(spec: str) -> tuple:
+def _typed(item: str, kind: KeyType, spec: str):
+    """One value of a list SPEC read as the key takes it: a number, true/false or a word."""
+    text = item.strip()
+    if NUMBER in kind.kinds:
+        try:
+            float(text)
+        except ValueError:
+            pass
+        else:
+            return _number(text, "each value", spec)
+    if BOOLEAN in kind.kinds and text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    if WORD in kind.kinds and (text in kind.words or not kind.words):
+        return text
+    raise SweepError(f"{spec}: {echo(text)} is not {kind.describe()}")
+
+
+def _yaml_item(item: str, spec: str):
+    """One value of a list SPEC for a key the schema does not type: a YAML scalar."""
+    try:
+        value = parse_yaml(item)
+    except YamlInputError:
+        value = None
+    if value is None or isinstance(value, dict | list):
+        raise SweepError(f"{spec}: expected numbers or words separated by commas")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise SweepError(f"{spec}: {echo(item)} is not a finite number")
+    return value
+
+
+def _listed(spec: str, kind: KeyType | None) -> tuple:
     values = []
     for item in spec.split(","):
-        try:
-            value = parse_yaml(item) if item.strip() else None
-        except YamlInputError:
-            value = None
-        if value is None or isinstance(value, dict | list):
+        if not item.strip():
             raise SweepError(f"{spec}: expected numbers or words separated by commas")
-        if isinstance(value, float) and not math.isfinite(value):
-            raise SweepError(f"{spec}: {echo(item)} is not a finite number")
-        values.append(value)
+        values.append(_yaml_item(item, spec) if kind is None else _typed(item, kind, spec))
     return tuple(values)
 
 
-def parse_spec(spec: str) -> tuple:
+def _kind(value) -> str:
+    if isinstance(value, bool):  # before int: True is an int too
+        return BOOLEAN
+    return NUMBER if isinstance(value, int | float) else WORD
+
+
+def _one_kind(values: tuple, spec: str) -> None:
+    """Refuse values of mixed kinds (``1,abc``, ``auto,2``): one column of the table, one axis
+    of the plot."""
+    kinds = sorted({_kind(v) for v in values})
+    if len(kinds) > 1:
+        raise SweepError(
+            f"{spec}: values of mixed kinds ({' and '.join(k + 's' for k in kinds)}); "
+            "give values of one kind"
+        )
+
+
+def parse_spec(spec: str, kind: KeyType | None = None) -> tuple:
     """The values of a ``SPEC`` (``a:b:n``, ``a,b,c`` or ``random:a:b:n:seed``).
+
+    Parameters
+    ----------
+    spec : str
+        The SPEC as written.
+    kind : KeyType, optional
+        What the varied key takes (:func:`cpopt.problem.keytypes.key_type`): the values of a
+        list are read as that, and a range needs a key that takes numbers. Without it a list's
+        values are YAML scalars.
 
     Raises
     ------
@@ -133,6 +186,9 @@ def parse_spec(spec: str) -> tuple:
         Saying what was expected.
     """
     text = spec.strip()
+    ranged = text.startswith("random:") or ":" in text
+    if ranged and kind is not None and NUMBER not in kind.kinds:
+        raise SweepError(f"{spec}: a range gives numbers; the key takes {kind.describe()}")
     if text.startswith("random:"):
         parts = text.split(":")[1:]
         if len(parts) != 4:
@@ -143,27 +199,36 @@ def parse_spec(spec: str) -> tuple:
         if len(parts) != 3:
             raise SweepError(f"{spec}: expected a:b:n (n evenly spaced values from a to b)")
         return _linear(parts, spec)
-    return _listed(text)
+    values = _listed(text, kind)
+    _one_kind(values, spec)
+    return values
 
 
 def parse_vary(text: str) -> Vary:
-    """One ``--vary KEY=SPEC``.
+    """One ``--vary KEY=SPEC``, its values read as the key takes them
+    (:func:`cpopt.problem.keytypes.key_type`).
 
     Raises
     ------
     SweepError
-        For a missing ``=``, a malformed key path or SPEC, or a value given twice.
+        For a missing ``=``, a malformed key path or SPEC, ``name`` (the sweep names the
+        points), values the key does not take or of mixed kinds, or a value given twice.
     """
     key, sep, spec = text.partition("=")
     if not sep:
         raise SweepError(f"--vary {text}: expected KEY=SPEC, e.g. motion.duration=1.2:2.0:5")
     key = key.strip()
     try:
-        parse_key_path(key)
+        parts = parse_key_path(key)
     except KeyPathError as err:
         raise SweepError(f"--vary {err}") from None
+    if parts == ("name",):
+        raise SweepError(
+            f"--vary {text}: the sweep names each point after its values; vary a value of the "
+            "problem instead"
+        )
     try:
-        values = parse_spec(spec)
+        values = parse_spec(spec, key_type(key))
     except SweepError as err:
         raise SweepError(f"--vary {key}={err}") from None
     if len(set(values)) != len(values):  # 1 and 1.0 are one value
@@ -171,12 +236,25 @@ def parse_vary(text: str) -> Vary:
     return Vary(key, values)
 
 
-def check_varies(varies: list[Vary]) -> None:
-    """Refuse a key path varied twice and a grid over :data:`MAX_POINTS` points."""
+def check_varies(varies: list[Vary], time_limit: float | None = None) -> None:
+    """Refuse a key path varied twice or inside another varied one, one ``--time-limit``
+    sets too, and a grid over :data:`MAX_POINTS` points."""
     keys = [v.key for v in varies]
     for key in keys:
         if keys.count(key) > 1:
             raise SweepError(f"--vary {key}: given twice; give all its values in one SPEC")
+    try:
+        check_disjoint(keys)
+    except KeyPathError as err:
+        raise SweepError(f"--vary {err}") from None
+    if time_limit is not None:
+        try:
+            check_disjoint([*keys, MAX_TIME])
+        except KeyPathError as err:
+            raise SweepError(
+                f"--vary {err.path} and --time-limit {time_limit:g} both set each point's "
+                f"{MAX_TIME}; give one of them"
+            ) from None
     size = math.prod(len(v.values) for v in varies)
     if size > MAX_POINTS:
         raise SweepError(f"the grid has {size} points; at most {MAX_POINTS}")
@@ -185,8 +263,9 @@ def check_varies(varies: list[Vary]) -> None:
 def _label(value, others: tuple) -> str:
     """A value in a folder name: as short as keeps the values of its key apart."""
     if isinstance(value, float):
+        numbers = [v for v in others if isinstance(v, float)]
         for fmt in (".6g", ".10g"):
-            if len({format(v, fmt) for v in others}) == len(others):
+            if len({format(v, fmt) for v in numbers}) == len(numbers):
                 return format(value, fmt)
         return repr(value)
     return str(value)
@@ -244,7 +323,7 @@ def build_points(path: str, varies: list[Vary], time_limit: float | None = None)
         For a key path that cannot be set or a point that does not validate: the message
         names the base file, the point (its values) and the key path.
     """
-    check_varies(varies)
+    check_varies(varies, time_limit)
     try:
         data, base = read_base(path)
     except ProblemError as err:
@@ -260,7 +339,7 @@ def build_points(path: str, varies: list[Vary], time_limit: float | None = None)
             point = with_values(data, values)
             point["name"] = name
             if time_limit is not None:
-                point = with_values(point, {"optimizer.solver.max_time": float(time_limit)})
+                point = with_values(point, {MAX_TIME: float(time_limit)})
             parse_problem(point, where)
         except KeyPathError as err:
             raise SweepError(f"{where}: --vary {err}") from None
@@ -272,6 +351,7 @@ def build_points(path: str, varies: list[Vary], time_limit: float | None = None)
 
 __all__ = [
     "MAX_POINTS",
+    "MAX_TIME",
     "Point",
     "SweepError",
     "Vary",
