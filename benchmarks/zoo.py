@@ -150,6 +150,7 @@ class Flat:
     status: str = "not_run"
     pattern: str = ""
     search: str = ""
+    stages: str = ""
     raised: bool = False
 
 
@@ -160,6 +161,16 @@ def _pattern(solution) -> str:
     signs = "/".join(s[:3] for s in details.gamma_signs)
     times = ",".join(f"{t:.3f}" for t in details.switch_times)
     return signs + (f"@{times}" if times else "")
+
+
+def _stages(search: dict, stage_times: dict) -> str:
+    """Where a solve's time went [s]: the search's stages, then sampling and verifying."""
+    parts = [f"seed {search['seed']['time_s']:.2f}"] if "seed" in search else []
+    for name in ("bound", "flat", "near", "polish", "greedy"):
+        if search.get(name, {}).get("patterns"):
+            parts.append(f"{name} {search[name]['time_s']:.2f}")
+    parts += [f"{k} {stage_times[k]:.2f}" for k in ("sample", "verify") if k in stage_times]
+    return ", ".join(parts)
 
 
 def run_flat(data: dict, switches, time_limit: float) -> Flat:
@@ -177,6 +188,7 @@ def run_flat(data: dict, switches, time_limit: float) -> Flat:
         out.pattern = _pattern(solution)
         search = getattr(solution.solver.details, "search_figures", {}) or {}
         out.search = search.get("summary", "")
+        out.stages = _stages(search, solution.solver.stage_times)
         if solution.plan is not None and solution.status == "solved":
             out.cost = metrics(solution.plan, sample(solution.plan, FINE)).torque_sq_integral
     except Exception:  # a traceback on a valid problem: counted, printed
@@ -307,6 +319,7 @@ def main(argv=None) -> int:
             f"{r.name:10s} {r.description[5:]:26s} {r.collocation:10.5g} "
             f"{r.one_sign.cost:10.5g} {r.one_sign.wall:5.1f} {r.auto.cost:10.5g} "
             f"{r.auto.wall:5.1f} {r.auto.status:10s} {r.auto.pattern} / {r.auto.search}"
+            f" / time: {r.auto.stages}"
         )
         print(
             f"ZOO {r.name} ratio_auto={_g(r.ratio_auto)} ratio_one_sign={_g(r.ratio_one_sign)} "

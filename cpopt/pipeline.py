@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from . import progress
-from .budget import Budget, TimeLimitExceeded, enforced
+from .budget import Budget, TimeLimitExceeded, enforced, remaining
 from .kinematics import ReachError
 from .limits import Limit, rated_torques, violations
 from .plan import CPPlan, SingularPlanError, closed_form
@@ -219,6 +219,12 @@ def plan_optimized(problem: Problem, partial: StageRecord, start: CPPlan | None 
     partial.reached("planning (flat optimizer)")
     progress.ipopt_run("flat optimizer")
     result = optimize(problem, start)
+    if result.status == "time_limit":  # the search's deadline came before any plan solved
+        elapsed = problem.max_time - remaining()
+        why = "; no plan solved by the search's deadline"
+        return time_limit_solution(
+            problem, partial.stage, elapsed, why, plan=result.plan, solver=result.solver
+        )
     if result.plan is None:
         return Solution(
             problem.name,

@@ -338,6 +338,7 @@ def solve_for_signs(
     abandon=None,
     deadline: float = math.inf,
     steps: tuple[float, ...] = (),
+    refine_past_limit: bool = False,
 ) -> SignAttempt:
     """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
     the margin is certified.
@@ -364,6 +365,9 @@ def solve_for_signs(
     steps : tuple of float
         Fractions of gamma_min (below 1, rising) a solve from a ``seed`` goes through before
         the problem's own margin (:mod:`~cpopt.flatopt.continuation`); none by default.
+    refine_past_limit : bool
+        ``limit`` caps the rounds before the first solved one only: a solved plan gets its
+        refinement rounds (each at most :data:`REFINE_LIMIT` iterations).
     """
     grids = initial_grids(problem)
     previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
@@ -384,7 +388,7 @@ def solve_for_signs(
         arguments = _round_arguments(nlp, problem, signs, seed, previous)
         left = None if limit is None else max(limit - iterations, 1)
         if round_ > 1:  # resumed from a solved round: a long run means the grid is not enough
-            left = min(left or REFINE_LIMIT, REFINE_LIMIT)
+            left = REFINE_LIMIT if refine_past_limit else min(left or REFINE_LIMIT, REFINE_LIMIT)
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
@@ -392,7 +396,13 @@ def solve_for_signs(
         if run.status == "time_limit" and round_ > 1:  # the last solved round stands
             nlp, run = previous
             break
-        plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
+        try:
+            plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
+        except ValueError:  # a diverged iterate: its node times no longer increase
+            if run.status == "solved":
+                raise
+            run = replace(run, x=arguments["x0"], objective=math.nan)  # the start instead
+            plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
         if run.status != "solved" or time.monotonic() > deadline:
             break
         dips = between_samples(problem, plan, times)
@@ -429,7 +439,9 @@ under-sampled its cost by 14 %; a random RPR swing-down's losing sign of gamma r
 there and did not solve)."""
 RESERVE = 0.15
 """The fraction of the time left when the optimizer starts that its searches leave to what
-follows them (sampling and verifying the plan), at most :data:`RESERVE_MAX` seconds."""
+follows them (sampling and verifying the plan), at least :data:`RESERVE_MIN` and at most
+:data:`RESERVE_MAX` seconds."""
+RESERVE_MIN = 0.25
 RESERVE_MAX = 1.0
 
 
@@ -437,7 +449,7 @@ def search_deadline() -> float:
     """``time.monotonic()`` by which a search returns its best plan: the active time limit
     (:func:`cpopt.budget.remaining`) less a reserve for verification (none without a limit)."""
     left = remaining()
-    return time.monotonic() + left - min(RESERVE * left, RESERVE_MAX)
+    return time.monotonic() + left - min(max(RESERVE * left, RESERVE_MIN), RESERVE_MAX)
 
 
 def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:

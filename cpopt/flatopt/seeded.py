@@ -64,6 +64,7 @@ from .switching import (
     seed_pattern,
     sign_assignments,
     with_switches,
+    within_budget,
 )
 
 
@@ -106,20 +107,29 @@ def worth_polishing(problem: Problem, best, seed: Seed) -> bool:
 CONTINUATION = ()
 """Fractions of gamma_min a solve from the seed goes through before gamma_min itself
 (:mod:`~cpopt.flatopt.continuation`)."""
+SWITCH_ITERATIONS = 500
+"""Ipopt iterations the stages with switches (the seed's pattern and its cut, near a node,
+greedy steps; the polish keeps its own caps) get together after the bound, before their first
+solved rounds (a solved plan's refinement rounds are not cut): a seeded run on
+a hard random problem (several switches, 30-90 ms an iteration) that would lose to the bound
+wanders for thousands; the winners measured took 171 (``swing_up_switches``), 208
+(``transfer_switch``) and 444 (a random RRR swing-up, 246 of them refining). Iterations, not
+seconds, so that a search gives the same plan on a slower or busier machine."""
 NEAR = 0.1
 """A switch closer than this fraction of the motion to the start, the goal or a pinned via
 state gets alternatives (:func:`near_alternatives`)."""
 
 
 def solve_pattern(
-    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None, steps=()
+    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None, **options
 ):
     """Solve one pattern with its switch times held, started from the trajectory ``start``
     (from the closed form through the nodes when it is None); ``limit``, ``abandon`` and the
-    continuation ``steps`` as in :func:`cpopt.flatopt.solve_for_signs`."""
+    ``options`` (the continuation ``steps``, a ``deadline``) as in
+    :func:`cpopt.flatopt.solve_for_signs`."""
     augmented, switches = with_switches(problem, pattern.times, free_times=False)
     return solve(
-        augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon, steps=steps
+        augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon, **options
     )
 
 
@@ -200,13 +210,15 @@ class Run:
     solve: Solve
     seed: Seed
     deadline: float = math.inf
+    iterations_left: float = math.inf
     bound: object = None
     tried: list = field(default_factory=list)
     stages: dict = field(default_factory=lambda: {name: Stage() for name in STAGES})
 
     def late(self) -> bool:
-        """True once the deadline has passed: no stage starts after it."""
-        return time.monotonic() > self.deadline
+        """True once the deadline has passed or the stages with switches have spent their
+        iterations: no stage starts after it."""
+        return time.monotonic() > self.deadline or self.iterations_left <= 0
 
     def solved_before(self, pattern: Pattern) -> bool:
         """True when an attempt solved ``pattern``'s signs with switches within MIN_PHASE of
@@ -225,9 +237,14 @@ class Run:
         """Solve ``pattern`` from the trajectory ``start`` (:func:`solve_pattern`), counted in
         ``stage`` and kept among the attempts."""
         tic = time.perf_counter()
-        result = solve_pattern(self.solve, self.problem, pattern, start, **options)
+        limit = min(options.pop("limit", None) or math.inf, self.iterations_left)
+        limit = None if math.isinf(limit) else max(int(limit), 1)
+        result = solve_pattern(
+            self.solve, self.problem, pattern, start, limit, refine_past_limit=True, **options
+        )
         self.stages[stage].add(result, tic)
         self.tried.append(result)
+        self.iterations_left -= result.iterations
         return result
 
 
@@ -256,6 +273,7 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
     progress.stage("switch search: coarse collocation seed")
     run = Run(problem, solve, coarse_seed(problem), deadline)
     run.bound = _one_sign_bound(run)
+    run.iterations_left = SWITCH_ITERATIONS  # for the stages with switches
     seed = run.seed
     pattern = seed_pattern(problem, seed, budget) if seed.trajectory is not None else None
     notes = []
@@ -315,7 +333,24 @@ def _seeded_attempt(run: Run, pattern: Pattern):
     if best.status not in ("solved", "dominated", "time_limit") and not run.late():
         retry = run.attempt("flat", pattern, None, abandon=_bar(run.bound))
         best = retry if _better(retry, best) else best
+    fewer = _fewest(run, pattern)
+    if best.status != "solved" and fewer is not None and not run.late():
+        progress.stage("switch search: the seed's strongest crossing alone")
+        single = run.attempt("flat", fewer, run.seed.trajectory, abandon=bar)
+        best = single if _better(single, best) else best
     return best
+
+
+def _fewest(run: Run, pattern: Pattern) -> Pattern | None:
+    """The seed's pattern cut to one switch more than the bound's (close pairs cancelled, then
+    the crossings nearest the ends dropped, :func:`~cpopt.flatopt.switching.within_budget`),
+    or None when that is the pattern itself."""
+    least = len(needed_times(run.problem)) + 1
+    if len(pattern.times) <= least:
+        return None
+    times = within_budget(pattern.times, least, run.problem.nodes[-1].t)
+    wanted = gamma_signs_on_grid(run.problem, run.seed.trajectory)
+    return agreeing(run.problem, times, wanted)
 
 
 def _near(run: Run, pattern: Pattern, best, method: str):
@@ -346,7 +381,7 @@ def _polished(run: Run, best, method: str, notes: list):
         notes.append(f"no polish (within {POLISH_GAIN:.0%} of the seed's cost)")
         return best, method
     budget = run.stages["flat"].time_s
-    polished, more = polish(
+    polished, more = polish(  # capped by POLISH_LIMIT and the flat solve's time
         run.solve, run.problem, best, budget, run.stages["polish"], run.bound, run.solved_before
     )
     run.tried += more
@@ -361,9 +396,12 @@ def _grown(run: Run, best, method: str, notes: list):
     tic = time.perf_counter()
     # judged like a seeded run: a greedy candidate of transfer_switch was 82 times the
     # one-sign plan at iteration 10 and then solved a quarter below it
-    grown, more, said = grow(run.problem, run.solve, run.bound, run.deadline, SEEDED_EARLIEST)
+    grown, more, said = grow(
+        run.problem, run.solve, run.bound, run.deadline, SEEDED_EARLIEST, run.iterations_left
+    )
     for attempt in more:
         run.stages["greedy"].add(attempt, tic)
+        run.iterations_left -= attempt.iterations
         tic = time.perf_counter()
     run.tried += more
     notes.append(f"greedy steps from the bound: {said}")

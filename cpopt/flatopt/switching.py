@@ -369,13 +369,20 @@ def neighbours(problem: Problem, old: Pattern) -> list[Pattern]:
     return out
 
 
-def solve_from_nodes(solve: Solve, problem: Problem, pattern: Pattern, abandon=None):
+def solve_from_nodes(
+    solve: Solve, problem: Problem, pattern: Pattern, abandon=None, limit: int | None = None
+):
     """Solve one pattern from the closed form through the file's nodes and switch states
     interpolated between them. (Starting from the previous plan was measured worse: where the
     new pattern flips the sign of a long stretch its CP curve asks for the link turned by half
     a turn, and a failed solve costs its whole iteration limit.)"""
     augmented, switches = with_switches(problem, pattern.times)
-    return solve(augmented, pattern.signs, switches, abandon=abandon)
+    if limit is None:
+        return solve(augmented, pattern.signs, switches, abandon=abandon)
+    # a cap on the search's iterations: a solved plan still gets its refinement rounds
+    return solve(
+        augmented, pattern.signs, switches, abandon=abandon, limit=limit, refine_past_limit=True
+    )
 
 
 DOMINATED_AFTER = 30
@@ -434,14 +441,15 @@ def dominated(best: float, earliest: int = DOMINATED_EARLIEST):
     not use it: on ``transfer_switch`` (``switch_search: greedy``) one was 82 times the
     one-sign plan at iteration 10, its infeasibility growing from 1.3e3 to 5.7e3, and then
     solved a quarter below it; an early abandonment there would have kept one sign.
-    A run started from a seed fit (``earliest`` :data:`SEEDED_EARLIEST`) is judged only from
-    then on, and only once nearly feasible (violations below :data:`SEEDED_FEASIBLE`), by the
-    stall rule: its start is far above where it lands, its objective swings while it is
-    infeasible, and so does its infeasibility (the seed's pattern of ``transfer_switch``
-    starts at 200 times the one-sign plan's objective, is at 20 times it with its
-    infeasibility grown from 0.01 to 22 at iteration 10, at 0.7 times it at 30, and solves at
-    half of it at 208; a random RPR swing-down's is at 5.7 times the one-sign plan's at
-    iteration 30, 1.9 at 34, 3.1 at 40, and solves at 0.45 at 98).
+    A run started from a seed fit (``earliest`` :data:`SEEDED_EARLIEST`) is judged only from then
+    on, and only once nearly feasible (violations below :data:`SEEDED_FEASIBLE`), by the stall
+    rule: its start is far above where it lands, its objective swings while it is infeasible, and
+    so does its infeasibility (the seed's pattern of ``transfer_switch`` starts at 200 times the
+    one-sign plan's objective, is at 20 times it with its infeasibility grown from 0.01 to 22 at
+    iteration 10, at 0.7 times it at 30, and solves at half of it at 208; a random RPR swing-down's
+    is at 5.7 times the one-sign plan's at iteration 30, 1.9 at 34, 3.1 at 40, and solves at 0.45
+    at 98; abandoning any run still above twice the best at iteration 100 lost a random PPR
+    transfer's four switches, which solve at 0.094 times the bound).
     """
     objectives: list[float] = []
     infeasibilities: list[float] = []
@@ -571,26 +579,43 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
 
 
 def grow(
-    problem: Problem, solve: Solve, best, deadline: float = math.inf, earliest: int | None = None
+    problem: Problem,
+    solve: Solve,
+    best,
+    deadline: float = math.inf,
+    earliest: int | None = None,
+    iterations: float = math.inf,
 ) -> tuple:
     """The greedy steps from a solved plan ``best``: add a switch where the margin binds
     (:func:`candidates`), each candidate solved from the closed form, while a switch more
     lowers the cost (by :data:`GAIN` with ``auto``) and ``gamma_switches`` allows one more.
     With ``earliest`` a candidate is abandoned once ``best`` dominates it
-    (:func:`dominated` from that iteration). Returns the best attempt, the attempts made and
-    why the steps stopped."""
+    (:func:`dominated` from that iteration); the candidates get ``iterations`` Ipopt
+    iterations together. Returns the best attempt, the attempts made and why the steps
+    stopped."""
     wanted = problem.spec.optimizer.gamma_switches
     budget = MAX_SWITCHES if wanted == "auto" else wanted
     attempts: list = []
     while best.status == "solved" and len(best.switch_times) < budget:
+        left = iterations - sum(a.iterations for a in attempts)
         if time.monotonic() > deadline:
             return best, attempts, "search deadline reached"
+        if left <= 0:
+            return best, attempts, "the search's iterations spent"
         patterns = candidates(problem, best, budget)
         if not patterns:
             return best, attempts, "no place left for a switch"
-        abandon = None if earliest is None else dominated(best.objective, earliest)
-        tried = [solve_from_nodes(solve, problem, pattern, abandon) for pattern in patterns]
+        tried = []
+        for pattern in patterns:
+            left = iterations - sum(a.iterations for a in attempts + tried)
+            if left <= 0:
+                break
+            abandon = None if earliest is None else dominated(best.objective, earliest)
+            limit = None if math.isinf(left) else int(left)
+            tried.append(solve_from_nodes(solve, problem, pattern, abandon, limit))
         attempts += tried
+        if not tried:
+            return best, attempts, "the search's iterations spent"
         better = _best(tried)
         gain = (best.objective - better.objective) / max(abs(best.objective), 1e-12)
         if better.status != "solved":
