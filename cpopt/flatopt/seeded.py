@@ -291,8 +291,10 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
         best, method = _polished(run, best, method, notes)
         if seeded.status != "solved" and method == "one_sign" and not run.late():
             best, method = _grown(run, best, method, notes)
-    if run.late():
+    if time.monotonic() > run.deadline:
         notes.append("search deadline reached")
+    elif run.iterations_left <= 0:
+        notes.append(f"the stages with switches spent their {SWITCH_ITERATIONS} iterations")
     summary = _summary(wanted, seed, pattern, best, method, run.bound, notes)
     figures = {"method": method, "summary": summary, "seed": seed.report.as_dict()}
     figures.update({name: stage.as_dict() for name, stage in run.stages.items()})
@@ -423,8 +425,9 @@ def _summary(wanted, seed, pattern, best, method, bound, notes) -> str:
     """One line: the plan kept, which stage found it, the bound, what became of the rest."""
     shown = _times(pattern.times) if pattern is not None else "none"
     bound_word = f"{bound.objective:.6g}" if bound.status == "solved" else bound.status
+    found = f"found by {method}" if best.status == "solved" else f"none solved, best {method}"
     return (
-        f"{len(best.switch_times)} switch(es) ({wanted} asked), found by {method}: "
+        f"{len(best.switch_times)} switch(es) ({wanted} asked), {found}: "
         f"objective {best.objective:.6g}, one-sign bound {bound_word}; seed crossings at "
         f"{_times(seed.report.crossings)}, pattern {shown}; " + "; ".join(notes)
     )
