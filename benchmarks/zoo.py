@@ -216,6 +216,8 @@ def run_collocation(data: dict, intervals: int) -> float | None:
 
 @dataclass
 class Row:
+    """One problem of the zoo: its unconstrained collocation cost and both flat solves."""
+
     name: str
     description: str
     collocation: float
@@ -239,6 +241,7 @@ class Row:
 
 
 def _valid(data: dict) -> bool:
+    """True when the file format takes the drawn data."""
     import cpopt
     from cpopt.problem import ProblemError
 
@@ -295,6 +298,22 @@ def summary(rows: list[Row], redraws: int, time_limit: float) -> str:
     )
 
 
+def report(r: Row) -> None:
+    """Print a problem's table row (costs, times [s], the pattern, the search's summary and
+    where its time went) and its ZOO line."""
+    print(
+        f"{r.name:10s} {r.description[5:]:26s} {r.collocation:10.5g} "
+        f"{r.one_sign.cost:10.5g} {r.one_sign.wall:5.1f} {r.auto.cost:10.5g} "
+        f"{r.auto.wall:5.1f} {r.auto.status:10s} {r.auto.pattern} / {r.auto.search}"
+        f" / time: {r.auto.stages}"
+    )
+    print(
+        f"ZOO {r.name} ratio_auto={_g(r.ratio_auto)} ratio_one_sign={_g(r.ratio_one_sign)} "
+        f"auto_s={r.auto.wall:.2f} status={r.auto.status}",
+        flush=True,
+    )
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--count", type=int, default=30, help="problems in the zoo")
@@ -324,19 +343,8 @@ def main(argv=None) -> int:
         if isinstance(item, int):
             redraws = item
             break
-        r = item
-        rows.append(r)
-        print(
-            f"{r.name:10s} {r.description[5:]:26s} {r.collocation:10.5g} "
-            f"{r.one_sign.cost:10.5g} {r.one_sign.wall:5.1f} {r.auto.cost:10.5g} "
-            f"{r.auto.wall:5.1f} {r.auto.status:10s} {r.auto.pattern} / {r.auto.search}"
-            f" / time: {r.auto.stages}"
-        )
-        print(
-            f"ZOO {r.name} ratio_auto={_g(r.ratio_auto)} ratio_one_sign={_g(r.ratio_one_sign)} "
-            f"auto_s={r.auto.wall:.2f} status={r.auto.status}",
-            flush=True,
-        )
+        rows.append(item)
+        report(item)
     print(summary(rows, redraws, args.time_limit))
     return 0
 

@@ -16,9 +16,12 @@ issue 30).
    in a short phase scales every CP derivative there by a power of the phase's length, and
    Ipopt was measured to wander for hundreds of iterations with it. A pattern that does not
    solve from the seed is tried once from the closed form.
-4. **Near the nodes**: a switch closer than :data:`NEAR` of the motion to the start, the goal
-   or a via state of the file gets alternatives: the pattern without it, and with it moved
-   that far away (:func:`near_alternatives`).
+4. **Near the nodes**, when the seed's pattern did not solve: a switch closer than
+   :data:`NEAR` of the motion to the start, the goal or a via state of the file gets
+   alternatives: the pattern without it, and with it moved that far away
+   (:func:`near_alternatives`). (A solved plan's switch near a node is dropped by the polish;
+   trying both alternatives after a solved ``swing_up_switches`` cost 4 s and gained
+   nothing.)
 5. **Polish**: the patterns one switch away (:func:`cpopt.flatopt.switching.neighbours`),
    each started from the plan solved so far and given at most
    :data:`~cpopt.flatopt.switching.POLISH_LIMIT` iterations and abandoned once clearly
@@ -287,7 +290,8 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
         if _better(seeded, best):
             best, method = seeded, "seed"
         notes.append(_verdict(seeded, run.bound))
-        best, method = _near(run, pattern, best, method)
+        if seeded.status != "solved":  # a solved plan's near switches: the polish drops them
+            best, method = _near(run, pattern, best, method)
         best, method = _polished(run, best, method, notes)
         if seeded.status != "solved" and method == "one_sign" and not run.late():
             best, method = _grown(run, best, method, notes)
