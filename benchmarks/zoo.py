@@ -321,18 +321,7 @@ def main(argv=None) -> int:
     parser.add_argument("--intervals", type=int, default=200, help="collocation intervals N")
     parser.add_argument("--time-limit", type=float, default=20.0, help="per flat solve [s]")
     parser.add_argument("--save", type=Path, help="write the drawn problems here")
-    parser.add_argument(
-        "--continuation",
-        type=float,
-        nargs="*",
-        help="fractions of gamma_min the seeded solves go through first (issue 30's "
-        "experiment; cpopt.flatopt.seeded.CONTINUATION, off by default)",
-    )
     args = parser.parse_args(argv)
-    if args.continuation:
-        from cpopt.flatopt import seeded
-
-        seeded.CONTINUATION = tuple(args.continuation)
     rows: list[Row] = []
     redraws = 0
     print(

@@ -34,7 +34,6 @@ from ..problem import Problem
 from ..solver import SolverStats, run_nlp
 from ..trajectory import Trajectory
 from . import switching
-from .continuation import applies, relaxed_bounds
 from .path_timing import chosen_points
 from .refine import (
     CERTIFICATION,
@@ -272,61 +271,50 @@ def pattern_label(signs: tuple[int, ...], switches: int = 0) -> str:
     return words + (f" ({switches} switch{'es' if switches > 1 else ''})" if switches else "")
 
 
-def _start(
-    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed, fraction: float = 1.0
-) -> np.ndarray:
-    """The first round's initial vector: from the seed trajectory if there is one (fitted
-    with ``fraction`` of the margin gamma_min), else the closed form through the nodes."""
+def _start(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed) -> np.ndarray:
+    """The first round's initial vector: from the seed trajectory if there is one, else the
+    closed form through the nodes."""
     if seed is None:
         return initial_guess(nlp, problem, signs)
-    return seeded_guess(nlp, problem, signs, seed, fraction * problem.spec.optimizer.gamma_min)
+    return seeded_guess(nlp, problem, signs, seed)
 
 
-def _round_arguments(
-    nlp: FlatNLP, problem: Problem, signs, seed, previous, fraction: float = 1.0
-) -> dict:
+def _round_arguments(nlp: FlatNLP, problem: Problem, signs, seed, previous) -> dict:
     """nlpsol's arguments for a round: the first starts from the seed trajectory or the closed
-    form; a refinement or continuation round from the previous round's solution
-    (``previous``: its NLP and run), its core variables lifted onto the new samples, with its
-    multipliers. A ``fraction`` below 1 asks |gamma| >= fraction gamma_min only
-    (:mod:`~cpopt.flatopt.continuation`)."""
+    form; a refinement round from the previous round's solution (``previous``: its NLP and
+    run), its core variables lifted onto the new samples, with its multipliers."""
     p = nlp.parameters(problem.values)
     lbx, ubx = _bounds(nlp, problem)
     arguments = {"p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
-    if fraction < 1.0:
-        gamma_min = problem.spec.optimizer.gamma_min
-        arguments["lbg"], arguments["ubg"] = relaxed_bounds(nlp, gamma_min, fraction)
     if previous is None:
-        arguments["x0"] = _start(nlp, problem, signs, seed, fraction)
+        arguments["x0"] = _start(nlp, problem, signs, seed)
     else:
         arguments["x0"] = nlp.complete(previous[1].x, p)
         arguments.update(resumed_multipliers(previous, nlp))
     return arguments
 
 
-def continued(problem: Problem, signs, seed, grids, steps, deadline: float, limit=None):
-    """The continuation rounds of a seeded solve (:mod:`~cpopt.flatopt.continuation`): one
-    solve per fraction of gamma_min in ``steps``, each from the previous one. Returns the last
-    solved round (its NLP and run, None when the first did not solve) and the iterations and
-    times [s] spent (build, solve)."""
-    previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
-    for fraction in steps:
-        if time.monotonic() > deadline or (limit is not None and iterations >= limit):
-            break
-        label = f"{pattern_label(signs)}, continuation at {fraction:g} gamma_min"
-        progress.stage(f"flat optimizer: {label}")
-        tic = time.perf_counter()
-        nlp = build(problem, signs, grids, warm=True, resume=previous is not None)
-        build_time += time.perf_counter() - tic
-        arguments = _round_arguments(nlp, problem, signs, seed, previous, fraction)
-        left = None if limit is None else max(limit - iterations, 1)
-        run = run_nlp(nlp.solver, nlp.reporter, label, left, None, deadline, **arguments)
-        iterations += run.iterations
-        solve_time += run.solve_time_s
-        if run.status != "solved":
-            break
-        previous = (nlp, run)
-    return previous, iterations, build_time, solve_time
+def _round_limit(limit, iterations: int, refinement: bool, refine_past_limit: bool):
+    """The iteration cap of a round (None for Ipopt's own): what is left of ``limit``; a
+    refinement round, resumed from a solved one, at most :data:`REFINE_LIMIT` (a long run
+    there means the grid is not enough), and only that with ``refine_past_limit``."""
+    left = None if limit is None else max(limit - iterations, 1)
+    if not refinement:
+        return left
+    return REFINE_LIMIT if refine_past_limit else min(left or REFINE_LIMIT, REFINE_LIMIT)
+
+
+def _unpacked(problem: Problem, nlp: FlatNLP, run, arguments: dict, signs, switches):
+    """(run, plan, node times, cost terms) of a round; a failed run whose iterate diverged so
+    far that its node times no longer increase reports its start instead (objective NaN)."""
+    p = arguments["p"]
+    try:
+        return (run, *plan_from(problem, nlp, run.x, p, signs, switches))
+    except ValueError:
+        if run.status == "solved":
+            raise
+        run = replace(run, x=arguments["x0"], objective=math.nan)
+        return (run, *plan_from(problem, nlp, run.x, p, signs, switches))
 
 
 def solve_for_signs(
@@ -337,7 +325,6 @@ def solve_for_signs(
     limit: int | None = None,
     abandon=None,
     deadline: float = math.inf,
-    steps: tuple[float, ...] = (),
     refine_past_limit: bool = False,
 ) -> SignAttempt:
     """Solve for one pattern of signs of gamma (one per phase), refining the sample grid until
@@ -362,19 +349,12 @@ def solve_for_signs(
     deadline : float
         ``time.monotonic()`` by which the solve returns what it has (status ``time_limit``
         when no round solved by then; a refinement round cut there keeps the last solved one).
-    steps : tuple of float
-        Fractions of gamma_min (below 1, rising) a solve from a ``seed`` goes through before
-        the problem's own margin (:mod:`~cpopt.flatopt.continuation`); none by default.
     refine_past_limit : bool
         ``limit`` caps the rounds before the first solved one only: a solved plan gets its
         refinement rounds (each at most :data:`REFINE_LIMIT` iterations).
     """
     grids = initial_grids(problem)
     previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
-    if seed is not None and steps and applies(problem):
-        previous, iterations, build_time, solve_time = continued(
-            problem, signs, seed, grids, steps, deadline, limit
-        )
     refinements = 0
     pattern = pattern_label(signs, len(switches))
     for round_ in range(1, 2 + MAX_REFINEMENTS):
@@ -386,23 +366,14 @@ def solve_for_signs(
         nlp = build(problem, signs, grids, warm=seed is not None, resume=previous is not None)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous)
-        left = None if limit is None else max(limit - iterations, 1)
-        if round_ > 1:  # resumed from a solved round: a long run means the grid is not enough
-            left = REFINE_LIMIT if refine_past_limit else min(left or REFINE_LIMIT, REFINE_LIMIT)
+        left = _round_limit(limit, iterations, round_ > 1, refine_past_limit)
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
-        p = arguments["p"]
         if run.status == "time_limit" and round_ > 1:  # the last solved round stands
             nlp, run = previous
             break
-        try:
-            plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
-        except ValueError:  # a diverged iterate: its node times no longer increase
-            if run.status == "solved":
-                raise
-            run = replace(run, x=arguments["x0"], objective=math.nan)  # the start instead
-            plan, times, terms = plan_from(problem, nlp, run.x, p, signs, switches)
+        run, plan, times, terms = _unpacked(problem, nlp, run, arguments, signs, switches)
         if run.status != "solved" or time.monotonic() > deadline:
             break
         dips = between_samples(problem, plan, times)
@@ -412,6 +383,16 @@ def solve_for_signs(
         grids = tuple(g.refined(*new) for g, *new in zip(grids, gaps, dips, strict=True))
         previous = (nlp, run)
         refinements += 1
+    counts = (iterations, refinements, build_time, solve_time)
+    return _attempt(nlp, run, arguments["p"], (plan, times, terms), signs, switches, counts)
+
+
+def _attempt(nlp: FlatNLP, run, p, unpacked, signs, switches, counts) -> SignAttempt:
+    """The SignAttempt of a solve's last round (``unpacked``: its plan, node times and cost
+    terms; ``p`` the solver's parameters); ``counts`` are the iterations, refinements, build
+    and solve times [s] of all its rounds."""
+    plan, times, terms = unpacked
+    iterations, refinements, build_time, solve_time = counts
     # constraints of the plan the user gets: lifted samples recomputed from the core variables
     g = np.asarray(nlp.constraints(nlp.complete(run.x, p), p)).ravel()
     return SignAttempt(

@@ -210,20 +210,15 @@ def state_at(
 
 
 def seeded_values(
-    problem: Problem,
-    signs: tuple[int, ...],
-    traj: Trajectory,
-    fixed_times: bool = True,
-    gamma_min: float | None = None,
+    problem: Problem, signs: tuple[int, ...], traj: Trajectory, fixed_times: bool = True
 ) -> dict[str, float]:
     """The problem's values (SI) with every freed node value taken from the seed (within its
     bounds): the states at the nodes' times, xi and eta on each side for its phase's sign.
 
     With ``fixed_times`` node times and the duration keep their guesses (the switch times are
-    the pattern's, already among them). ``gamma_min`` [m/s^2], the problem's by default, is
-    the margin the values keep (a fraction of it in a continuation's first round)."""
+    the pattern's, already among them)."""
     arm = problem.arm
-    gamma_min = problem.spec.optimizer.gamma_min if gamma_min is None else gamma_min
+    gamma_min = problem.spec.optimizer.gamma_min
     values = dict(problem.values)
     names = node_names(len(problem.nodes))
     smooth = problem.spec.optimizer.smooth_torque

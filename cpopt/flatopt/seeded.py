@@ -9,13 +9,14 @@ issue 30).
    bound everything after: no plan costlier than the best of them is returned, and a later
    run that they dominate (:func:`~cpopt.flatopt.switching.dominated`) is abandoned.
 3. **Flat solve** of the seed's pattern, started from the seed (B-spline coefficients fitted to
-   its CP, xi and eta from its state, :func:`cpopt.flatopt.warm_start.seeded_guess`) with a
-   continuation in gamma_min (:data:`CONTINUATION`, :mod:`~cpopt.flatopt.continuation`): the
-   seed's |gamma| is small next to each crossing, and a fit that keeps gamma_min there starts
-   far from the seed. The switch times are held at the seed's crossings: a free switch time
+   its CP, xi and eta from its state, :func:`cpopt.flatopt.warm_start.seeded_guess`). (A
+   continuation in gamma_min, from a fraction of it up, was built and measured worse on the
+   bundled switch problems and no better on the zoo: near gamma = 0 the flat map is singular;
+   see docs/problems.md.) The switch times are held at the seed's crossings: a free switch time
    in a short phase scales every CP derivative there by a power of the phase's length, and
    Ipopt was measured to wander for hundreds of iterations with it. A pattern that does not
-   solve from the seed is tried once from the closed form.
+   solve from the seed is tried once from the closed form, then cut to one switch more than
+   the bound's (:func:`_fewest`).
 4. **Near the nodes**, when the seed's pattern did not solve: a switch closer than
    :data:`NEAR` of the motion to the start, the goal or a via state of the file gets
    alternatives: the pattern without it, and with it moved that far away
@@ -85,6 +86,12 @@ class Stage:
         self.time_s += time.perf_counter() - tic
         self.tried += 1
 
+    def add_all(self, attempts, tic: float) -> None:
+        """Count attempts made one after the other from ``tic`` (time.perf_counter) on."""
+        self.iterations += sum(a.iterations for a in attempts)
+        self.time_s += time.perf_counter() - tic
+        self.tried += len(attempts)
+
     def as_dict(self) -> dict:
         """JSON-ready figures."""
         return {"iterations": self.iterations, "time_s": self.time_s, "patterns": self.tried}
@@ -107,9 +114,6 @@ def worth_polishing(problem: Problem, best, seed: Seed) -> bool:
     return best.objective > (1 + POLISH_GAIN) * seed.report.objective
 
 
-CONTINUATION = ()
-"""Fractions of gamma_min a solve from the seed goes through before gamma_min itself
-(:mod:`~cpopt.flatopt.continuation`)."""
 SWITCH_ITERATIONS = 500
 """Ipopt iterations the stages with switches (the seed's pattern and its cut, near a node,
 greedy steps; the polish keeps its own caps) get together after the bound, before their first
@@ -128,7 +132,7 @@ def solve_pattern(
 ):
     """Solve one pattern with its switch times held, started from the trajectory ``start``
     (from the closed form through the nodes when it is None); ``limit``, ``abandon`` and the
-    ``options`` (the continuation ``steps``, a ``deadline``) as in
+    ``options`` (a ``deadline``, ``refine_past_limit``) as in
     :func:`cpopt.flatopt.solve_for_signs`."""
     augmented, switches = with_switches(problem, pattern.times, free_times=False)
     return solve(
@@ -237,11 +241,11 @@ class Run:
         )
 
     def attempt(self, stage: str, pattern: Pattern, start, **options):
-        """Solve ``pattern`` from the trajectory ``start`` (:func:`solve_pattern`), counted in
-        ``stage`` and kept among the attempts."""
+        """Solve ``pattern`` from the trajectory ``start`` (:func:`solve_pattern`) within the
+        iterations left, counted in ``stage`` and kept among the attempts."""
         tic = time.perf_counter()
-        limit = min(options.pop("limit", None) or math.inf, self.iterations_left)
-        limit = None if math.isinf(limit) else max(int(limit), 1)
+        left = self.iterations_left
+        limit = None if math.isinf(left) else max(int(left), 1)
         result = solve_pattern(
             self.solve, self.problem, pattern, start, limit, refine_past_limit=True, **options
         )
@@ -259,7 +263,7 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
     problem : Problem
         A problem with ``gamma_switches`` other than 0.
     solve : callable
-        ``solve(problem, signs, switches, seed=None, limit=None, abandon=None, steps=())
+        ``solve(problem, signs, switches, seed=None, limit=None, abandon=None, **options)
         -> SignAttempt`` (:func:`cpopt.flatopt.solve_for_signs`, its deadline bound).
     deadline : float
         ``time.monotonic()`` after which no stage starts: the best plan so far is returned.
@@ -313,9 +317,7 @@ def _one_sign_bound(run: Run):
     patterns = [Pattern(times, signs) for signs in sign_assignments(run.problem, times)]
     tic = time.perf_counter()
     attempts = first_attempts(run.solve, run.problem, patterns, run.seed)
-    for attempt in attempts:
-        run.stages["bound"].add(attempt, tic)
-        tic = time.perf_counter()
+    run.stages["bound"].add_all(attempts, tic)
     run.tried += attempts
     best = max(attempts, key=preference)
     if best.status == "solved" or run.seed.trajectory is None:
@@ -331,11 +333,11 @@ def _one_sign_bound(run: Run):
 
 
 def _seeded_attempt(run: Run, pattern: Pattern):
-    """The seed's pattern from the seed (with continuation in gamma_min), then from the closed
-    form when that did not solve; abandoned once the bound dominates it."""
+    """The seed's pattern from the seed, then from the closed form when that did not solve,
+    then cut to fewer switches (:func:`_fewest`); each abandoned once the bound dominates it."""
     progress.stage(f"switch search: the seed's pattern, {len(pattern.times)} switch(es)")
     bar = _bar(run.bound, seeded=True)
-    best = run.attempt("flat", pattern, run.seed.trajectory, abandon=bar, steps=CONTINUATION)
+    best = run.attempt("flat", pattern, run.seed.trajectory, abandon=bar)
     if best.status not in ("solved", "dominated", "time_limit") and not run.late():
         retry = run.attempt("flat", pattern, None, abandon=_bar(run.bound))
         best = retry if _better(retry, best) else best
@@ -371,7 +373,6 @@ def _near(run: Run, pattern: Pattern, best, method: str):
         progress.stage(f"switch search: near a node, {len(alternative.times)} switch(es)")
         attempt = run.attempt(
             "near", alternative, run.seed.trajectory, abandon=_bar(best, run.bound, seeded=True),
-            steps=CONTINUATION,
         )  # fmt: skip
         if _better(attempt, best):
             best, method = attempt, "near"
@@ -405,10 +406,8 @@ def _grown(run: Run, best, method: str, notes: list):
     grown, more, said = grow(
         run.problem, run.solve, run.bound, run.deadline, SEEDED_EARLIEST, run.iterations_left
     )
-    for attempt in more:
-        run.stages["greedy"].add(attempt, tic)
-        run.iterations_left -= attempt.iterations
-        tic = time.perf_counter()
+    run.stages["greedy"].add_all(more, tic)
+    run.iterations_left -= sum(a.iterations for a in more)
     run.tried += more
     notes.append(f"greedy steps from the bound: {said}")
     return (grown, "greedy") if _better(grown, best) else (best, method)
@@ -442,7 +441,6 @@ def _times(times) -> str:
 
 
 __all__ = [
-    "CONTINUATION",
     "NEAR",
     "Run",
     "Stage",

@@ -377,11 +377,10 @@ def solve_from_nodes(
     new pattern flips the sign of a long stretch its CP curve asks for the link turned by half
     a turn, and a failed solve costs its whole iteration limit.)"""
     augmented, switches = with_switches(problem, pattern.times)
-    if limit is None:
-        return solve(augmented, pattern.signs, switches, abandon=abandon)
     # a cap on the search's iterations: a solved plan still gets its refinement rounds
+    past = limit is not None
     return solve(
-        augmented, pattern.signs, switches, abandon=abandon, limit=limit, refine_past_limit=True
+        augmented, pattern.signs, switches, abandon=abandon, limit=limit, refine_past_limit=past
     )
 
 
@@ -596,8 +595,8 @@ def grow(
     wanted = problem.spec.optimizer.gamma_switches
     budget = MAX_SWITCHES if wanted == "auto" else wanted
     attempts: list = []
+    left = iterations
     while best.status == "solved" and len(best.switch_times) < budget:
-        left = iterations - sum(a.iterations for a in attempts)
         if time.monotonic() > deadline:
             return best, attempts, "search deadline reached"
         if left <= 0:
@@ -607,15 +606,14 @@ def grow(
             return best, attempts, "no place left for a switch"
         tried = []
         for pattern in patterns:
-            left = iterations - sum(a.iterations for a in attempts + tried)
             if left <= 0:
                 break
+            # each run its own: the rule keeps the run's history
             abandon = None if earliest is None else dominated(best.objective, earliest)
             limit = None if math.isinf(left) else int(left)
             tried.append(solve_from_nodes(solve, problem, pattern, abandon, limit))
+            left -= tried[-1].iterations
         attempts += tried
-        if not tried:
-            return best, attempts, "the search's iterations spent"
         better = _best(tried)
         gain = (best.objective - better.objective) / max(abs(best.objective), 1e-12)
         if better.status != "solved":

@@ -152,20 +152,14 @@ FIT_SAMPLES = 200
 
 
 def seeded_guess(
-    nlp: FlatNLP,
-    problem: Problem,
-    signs: tuple[int, ...],
-    seed: Trajectory,
-    gamma_min: float | None = None,
+    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed: Trajectory
 ) -> np.ndarray:
     """The whole initial decision vector from a seed trajectory (a coarse collocation, or a
     plan already solved): freed node values from its state (:func:`cpopt.flatopt.seed.
     seeded_values`), and each phase's free coefficients fitted to its CP by least squares with
-    the eliminated boundary coefficients, which the node values fix, kept. ``gamma_min``
-    [m/s^2] (the problem's by default) is the margin the fit keeps."""
+    the eliminated boundary coefficients, which the node values fix, kept."""
     o = problem.spec.optimizer
-    gamma_min = o.gamma_min if gamma_min is None else gamma_min
-    values = seeded_values(problem, signs, seed, gamma_min=gamma_min)
+    values = seeded_values(problem, signs, seed)
     p = nlp.parameters(values)
     basis = SplineBasis(o.degree, coefficient_count(o))
     zero = [np.zeros((basis.count, 2))] * (len(problem.nodes) - 1)
@@ -185,7 +179,7 @@ def seeded_guess(
             free[b.rows[0] : b.rows[1]] = True
         C = np.array(outs[1 + k], float)
         span = (times[k], times[k + 1])
-        C[free] = fitted(basis, C, free, seed, span, signs[k] * (gamma_min + PUSH))
+        C[free] = fitted(basis, C, free, seed, span, signs[k] * (o.gamma_min + PUSH))
         for b, at in blocks:
             core[at : at + b.size] = C[b.rows[0] : b.rows[1]].T.ravel()
     return nlp.complete(core, p)
