@@ -45,6 +45,32 @@ def _sigint_ignored() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _interrupt_noted() -> Iterator[list]:
+    """Ctrl-C while the results come in is noted as well as raised: Python swallows a
+    KeyboardInterrupt raised inside a ``__del__`` (Dask's ``Future.__del__`` runs often), and
+    the sweep then went on recording the points whose solver children the same Ctrl-C had
+    stopped as errors, and exited 1. A Ctrl-C that lands in a ``__del__`` is only noted; the
+    loop raises it before the next result is taken. Main thread with Python's own handler
+    only (elsewhere nothing is noted)."""
+    noted: list = []
+    own = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    if threading.current_thread() is not threading.main_thread() or not own:
+        yield noted
+        return
+
+    def on_interrupt(signum, frame) -> None:
+        noted.append(signum)
+        if frame is None or frame.f_code.co_name != "__del__":
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, on_interrupt)
+    try:
+        yield noted
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
 def connect(workers: int | None = None, scheduler: str | None = None):
     """A Dask ``Client``: on a new ``LocalCluster`` of ``workers`` single-threaded worker
     processes (default: one per core), or on the running scheduler at ``scheduler``.
@@ -123,13 +149,16 @@ def run(client, points: list[Point], source: str, done: Callable[..., None]) -> 
         )
         futures[future] = point
     try:
-        for future in as_completed(futures):
-            point = futures.pop(future)
-            try:
-                outcome, lost = future.result(), ""
-            except Exception as err:  # KilledWorker, a task that raised twice, a lost scheduler
-                outcome, lost = None, f"{type(err).__name__}: {err}"
-            done(point, outcome, lost)
+        with _interrupt_noted() as noted:
+            for future in as_completed(futures):
+                if noted:  # a Ctrl-C swallowed inside a __del__: this result came after it
+                    raise KeyboardInterrupt
+                point = futures.pop(future)
+                try:
+                    outcome, lost = future.result(), ""
+                except Exception as err:  # KilledWorker, a task that raised twice, a lost scheduler
+                    outcome, lost = None, f"{type(err).__name__}: {err}"
+                done(point, outcome, lost)
     finally:
         if futures:
             with contextlib.suppress(Exception):
