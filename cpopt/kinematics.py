@@ -247,6 +247,15 @@ def joint_state(arm: Arm, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return q[0], qd[0]
 
 
+OUTSIDE_REACH = 1e-10
+"""The floor of the squared sine (RRR) or cosine (PRR) under the symbolic inverse map's square
+root: outside the reach the map gives the stretched arm with enormous but finite torques, not
+NaN. An optimizer's first point (a fit of a seed) may graze the edge of the reach, and a NaN
+there ends Ipopt at iteration 0 (``Invalid_Number_Detected``; a random RRR transfer whose
+patterned seed costs 0.4 times the one-sign plan); later iterates outside are rejected by the
+line search either way. The reach constraint keeps solutions inside."""
+
+
 def inverse_position_symbolic(arm: Arm, x, y, theta):
     """Joint coordinates (3,) from the pose as CasADi expressions, on the arm's branch.
 
@@ -259,7 +268,7 @@ def inverse_position_symbolic(arm: Arm, x, y, theta):
     l1, l2 = arm.links[0].length, arm.links[1].length
     if arm.kind == "RRR":
         c2 = (px**2 + py**2 - l1**2 - l2**2) / (2 * l1 * l2)
-        s2 = ca.sqrt(1 - c2**2) * arm.branch_sign
+        s2 = ca.sqrt(ca.fmax(1 - c2**2, OUTSIDE_REACH)) * arm.branch_sign
         q2 = ca.atan2(s2, c2)
         q1 = ca.atan2(py, px) - ca.atan2(l2 * s2, l1 + l2 * c2)
         return ca.vertcat(q1, q2, theta - q1 - q2)
@@ -268,7 +277,7 @@ def inverse_position_symbolic(arm: Arm, x, y, theta):
         return ca.vertcat(q1, ca.sqrt(px**2 + py**2), theta - q1)
     if arm.kind == "PRR":
         s2 = py / l2
-        c2 = ca.sqrt(1 - s2**2) * arm.branch_sign
+        c2 = ca.sqrt(ca.fmax(1 - s2**2, OUTSIDE_REACH)) * arm.branch_sign
         q2 = ca.atan2(s2, c2)
         return ca.vertcat(px - l2 * c2, q2, theta - q2)
     return ca.vertcat(px, py, theta)
@@ -290,3 +299,28 @@ def reach_margin(arm: Arm, x, y):
     if arm.kind == "RPR":
         return px**2 + py**2
     return ca.DM(1.0) + 0 * px
+
+
+BRANCH_MARGIN = 1e-2
+"""How far a joint-space plan keeps from the edge of the arm's branch: RRR |sin q2|, PRR
+|cos q2| and RPR's extension q2 [m] at least this (the flat optimizer's reach constraint,
+``reach_margin >= 1e-4``, is the same bound squared)."""
+
+
+def branch_margin(arm: Arm, q, margin: float = BRANCH_MARGIN):
+    """A CasADi expression of joint coordinates q (3 x N, one column a configuration) that is
+    >= 0 exactly where the arm is on its branch at least ``margin`` from the edge (sine,
+    cosine or metres as in :data:`BRANCH_MARGIN`), or None for PPR (one branch, no edge).
+
+    A joint-space plan (collocation) is free to pass through the stretched elbow, RPR's base or
+    PRR's vertical link 2 into the other branch; a plan of the flat outputs, whose inverse map
+    keeps the arm's branch, cannot: without this bound the collocation peer solves another
+    problem than the flat optimizer (and than the arm, for RPR's negative extension).
+    """
+    if arm.kind == "RRR":
+        return arm.branch_sign * ca.sin(q[1, :]) - margin
+    if arm.kind == "PRR":
+        return arm.branch_sign * ca.cos(q[1, :]) - margin
+    if arm.kind == "RPR":
+        return q[1, :] - margin
+    return None

@@ -4,10 +4,13 @@ import numpy as np
 import pytest
 
 from cpopt.kinematics import (
+    BRANCH_MARGIN,
     ReachError,
+    branch_margin,
     forward_pose,
     inverse_derivatives,
     inverse_position,
+    inverse_position_symbolic,
     kinematic_functions,
 )
 from cpopt.robot import Arm, Link
@@ -93,3 +96,43 @@ def test_chain_points_end_at_link_tip():
     pose = forward_pose(arm, q)
     np.testing.assert_allclose(pts[:, 2], pose[:2], atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(pts[:, 3] - pts[:, 2]), 1.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("key", [k for k in ARMS if k[0] != "PPR"], ids=lambda k: f"{k[0]}-{k[1]}")
+def test_the_branch_margin_is_positive_exactly_on_the_arms_branch(key):
+    """Every pose the inverse map gives lies on the branch (margin > 0 away from its edge);
+    the same pose reached through the other branch (RRR: -q2; PRR: pi - q2; RPR: q1 + pi and
+    -q2) has a negative margin, BRANCH_MARGIN below the edge's."""
+    arm = ARMS[key]
+    pts, theta = _poses(arm)
+    q = inverse_position(arm, pts[:, 0], pts[:, 1], theta)
+    on = np.asarray(branch_margin(arm, q.T)).ravel()
+    assert (on > 0).all()
+    other = q.copy()
+    if arm.kind == "RRR":
+        other[:, 1] = -q[:, 1]
+    elif arm.kind == "PRR":
+        other[:, 1] = np.pi - q[:, 1]
+    else:
+        other[:, 0], other[:, 1] = q[:, 0] + np.pi, -q[:, 1]
+    off = np.asarray(branch_margin(arm, other.T)).ravel()
+    assert off == pytest.approx(-on - 2 * BRANCH_MARGIN, abs=1e-12)
+    assert branch_margin(ARMS[("PPR", None)], q.T) is None
+
+
+@pytest.mark.parametrize("kind", ["RRR", "PRR"])
+def test_the_symbolic_inverse_map_is_finite_outside_the_reach(kind):
+    """Outside the reach the symbolic map gives the stretched arm (finite), not NaN: a fit of a
+    seed that grazes the edge starts the optimizer there (OUTSIDE_REACH); inside, it is the
+    inverse map."""
+    import casadi as ca
+
+    arm = ARMS[(kind, "elbow_down" if kind == "RRR" else "forward")]
+    x, y, th = ca.SX.sym("x"), ca.SX.sym("y"), ca.SX.sym("th")
+    f = ca.Function("ik", [x, y, th], [inverse_position_symbolic(arm, x, y, th)])
+    far = (5.0, 0.0) if kind == "RRR" else (0.0, 1.5)  # beyond l1 + l2, or |y| > l2
+    assert np.isfinite(np.asarray(f(*far, 0.3))).all()
+    pts, theta = _poses(arm, 5)
+    inside = np.hstack([np.asarray(f(px, py, t)) for (px, py), t in zip(pts, theta)]).T
+    q = inverse_position(arm, pts[:, 0], pts[:, 1], theta)
+    assert np.cos(inside) == pytest.approx(np.cos(q), abs=1e-12)

@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import flat, progress
 from ..dynamics import holding_torque
-from ..kinematics import joint_state, kinematic_functions
+from ..kinematics import branch_margin, joint_state, kinematic_functions
 from ..nodes import MIN_PHASE, node_names
 from ..objectives import squared_norm, weights
 from ..plan import Node
@@ -47,8 +47,8 @@ def cold_guess(problem: Problem, t: np.ndarray) -> tuple[np.ndarray, ...]:
     return q, qd, tau
 
 
-def _warm_guess(traj, t: np.ndarray) -> tuple[np.ndarray, ...]:
-    """A sampled flat plan's joint motion and torques at times t."""
+def warm_guess(traj, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A sampled plan's joint motion and torques at times t (linear between its samples)."""
     keep = np.r_[np.diff(traj.t) > 0, True]
     tt = traj.t[keep]
 
@@ -80,6 +80,10 @@ class Stage:
 
 
 def _limits(problem: Problem, st: Stage) -> None:
+    """The file's limits and the arm's branch (:func:`cpopt.kinematics.branch_margin`)."""
+    branch = branch_margin(problem.arm, st.q)
+    if branch is not None:
+        st.stage.subject_to(branch >= 0)
     quantities = {"tau": st.tau, "q": st.q, "qd": st.qd}
     for limit in problem.limits:
         lo, hi = limit.bounds()
@@ -247,7 +251,7 @@ def transcription(problem: Problem, intervals: int, gamma_constraint: bool, warm
     traj = sample(warm_start, per_phase=401) if warm_start else None  # once, for every stage
 
     def guess(t):
-        return _warm_guess(traj, t) if warm_start else cold_guess(problem, t)
+        return warm_guess(traj, t) if warm_start else cold_guess(problem, t)
 
     key = (problem.spec.model_dump_json(), intervals, gamma_constraint, sign, progress.active())
     if warm_start is None and key in _CACHE:
