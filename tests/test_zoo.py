@@ -66,8 +66,9 @@ def test_the_summary_counts_ratios_losses_tracebacks_and_overruns(zoo):
 def test_a_zoo_of_three(zoo, capsys):
     """Three random problems (seed 5; collocation at N = 40 and 8 s per flat solve to keep the
     test short): every line in its format, no traceback, no solve over its time limit, auto
-    never costlier than one sign. (Measured: two PRR draws whose flat plans do not solve,
-    an RPR swing-down with a via state whose one-sign plan costs 48 times collocation's.)"""
+    never costlier than one sign. (Measured: a PRR swing-down whose one-sign plan costs 86
+    times collocation's and a PRR transfer whose flat plans do not solve in 8 s, an RPR
+    swing-down with a via state whose one-sign plan costs 48 times collocation's.)"""
     argv = ["--count", "3", "--seed", "5", "--intervals", "40", "--time-limit", "8"]
     assert zoo.main(argv) == 0
     out = capsys.readouterr().out

@@ -26,15 +26,15 @@ import numpy as np
 
 from ..budget import check_stop
 from ..dynamics import rk4_step, state_derivative
-from ..kinematics import kinematic_functions
+from ..kinematics import BRANCH_MARGIN, branch_margin, kinematic_functions
 from ..nodes import node_names
 from ..objectives import weights
 from ..plan import Node
 from ..problem import Problem
 from ..simulate import pose_states
 from ..solver import SolverStats, ipopt_options, read_stats
-from .joint_plan import JointPlan
-from .transcribe import NODE_FIELDS, cold_guess
+from .joint_plan import JointPlan, joint_functions
+from .transcribe import NODE_FIELDS, cold_guess, warm_guess
 
 SUBSTEPS = 8
 """Fine samples per interval, integrated by RK4 from each knot under the interval's torque
@@ -45,15 +45,20 @@ class SeedUnsupportedError(ValueError):
     """A problem the lean transcription does not take (free times, objective terms)."""
 
 
-def _intervals(problem: Problem, count: int) -> tuple[np.ndarray, list[int]]:
-    """Knot times over the whole motion and the knot index of every node."""
-    times = [n.t for n in problem.nodes]
-    knots, index = [times[0]], [0]
-    for a, b in itertools.pairwise(times):
-        n = max(2, round(count * (b - a) / times[-1]))
+def _intervals(
+    problem: Problem, count: int, switches: tuple[float, ...] = ()
+) -> tuple[np.ndarray, list[int], np.ndarray]:
+    """Knot times over the whole motion, the knot index of every node and the phase of every
+    interval (the file's phases split at the ``switches`` [s], which become knots too)."""
+    breaks = sorted({n.t for n in problem.nodes} | set(switches))
+    knots, phase = [breaks[0]], []
+    for j, (a, b) in enumerate(itertools.pairwise(breaks)):
+        n = max(2, round(count * (b - a) / breaks[-1]))
         knots += list(np.linspace(a, b, n + 1)[1:])
-        index.append(len(knots) - 1)
-    return np.array(knots), index
+        phase += [j] * n
+    knots = np.array(knots)
+    index = [int(np.argmin(np.abs(knots - n.t))) for n in problem.nodes]
+    return knots, index, np.array(phase)
 
 
 def _check(problem: Problem) -> dict:
@@ -80,10 +85,11 @@ def _node_rows(problem: Problem, i: int, x) -> tuple[list, list, list]:
     return rows, lo, hi
 
 
-def _box(problem: Problem, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds of the decision vector (6 x (n + 1) states, then 2 x n torques) from the limits."""
+def _box(problem: Problem, n: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the decision vector (6 x (n + 1) states, then 2 x ``count`` torques) from the
+    limits."""
     state_lo, state_hi = np.full((6, n + 1), -np.inf), np.full((6, n + 1), np.inf)
-    tau_lo, tau_hi = np.full((2, n), -np.inf), np.full((2, n), np.inf)
+    tau_lo, tau_hi = np.full((2, count), -np.inf), np.full((2, count), np.inf)
     for limit in problem.limits:
         lo, hi = limit.bounds()
         if limit.quantity == "tau":
@@ -96,8 +102,102 @@ def _box(problem: Problem, n: int) -> tuple[np.ndarray, np.ndarray]:
     return lower, upper
 
 
-def hermite_simpson(problem: Problem, intervals: int):
-    """Solve the problem by Hermite-Simpson collocation without the regularity constraint.
+def _knots_at(knots: np.ndarray, times) -> list[int]:
+    """The knot index of each of ``times`` [s]."""
+    return [int(np.argmin(np.abs(knots - t))) for t in times]
+
+
+class Torques:
+    """The transcription's torques: constant over each interval (``linear`` False: the
+    unconstrained seed, as it always was), or linear between the interval's ends and
+    continuous at the knots but at ``steps`` (knot indices: a patterned seed's switches, where
+    the flat plan's xi reset steps the torque). A seed with continuous torques has a
+    continuous gamma, which the flat plan's C2 CP can follow; under piecewise-constant torques
+    gamma steps by several m/s^2 at every knot and a flat solve started from its fit began at
+    1e4 times the seed's objective."""
+
+    def __init__(self, n: int, linear: bool, steps: list[int]) -> None:
+        self.linear = linear
+        self.count = 2 * n if linear else n  # torque vectors (2,) among the variables
+        values = ca.MX.sym("U", 2, self.count)
+        self.variables = ca.vec(values)
+        self.joins = ca.MX(0, 1)
+        if not linear:
+            self.start = self.middle = self.end = values
+            return
+        self.start, self.end = values[:, :n], values[:, n:]
+        self.middle = 0.5 * (self.start + self.end)
+        inner = [k for k in range(1, n) if k not in set(steps)]
+        if inner:
+            self.joins = ca.vec(self.end[:, [k - 1 for k in inner]] - self.start[:, inner])
+
+    def integral(self, h):
+        """The integral of |tau|^2 over the motion (Simpson's rule, exact for linear torques);
+        ``h`` the intervals' lengths (1 x n) [s]."""
+        if not self.linear:
+            return ca.sum2(h * ca.sum1(self.start**2))
+        ends = ca.sum1(self.start**2) + 4 * ca.sum1(self.middle**2) + ca.sum1(self.end**2)
+        return ca.sum2(h / 6 * ends)
+
+    def guess(self, tau: np.ndarray) -> np.ndarray:
+        """The torques' part of the initial guess from torques at the knots (n + 1, 2)."""
+        return tau[:-1].ravel() if not self.linear else np.r_[tau[:-1].ravel(), tau[1:].ravel()]
+
+
+def _gamma_rows(problem: Problem, X, M, torque, sigma: np.ndarray, at_switch, ceiling) -> tuple:
+    """sigma gamma >= gamma_min at both knots and the midpoint of every interval, each under
+    the interval's own torques (:class:`Torques`; gamma steps with the torque at a switch, as
+    a xi reset makes it step in the flat plan); at the knots ``at_switch`` (a boolean per knot) also
+    ``sigma gamma <= ceiling`` on both sides. Returns the rows, their lower and upper
+    bounds."""
+    n = sigma.size
+    gamma = joint_functions(problem.arm).map(n)
+    s = ca.DM(sigma).T
+    rows = [
+        s * gamma(X[:3, :-1], X[3:, :-1], torque.start)[1],
+        s * gamma(M[:3, :], M[3:, :], torque.middle)[1],
+        s * gamma(X[:3, 1:], X[3:, 1:], torque.end)[1],
+    ]
+    gamma_min = problem.spec.optimizer.gamma_min
+    upper = np.full((3, n), np.inf)
+    upper[0, at_switch[:-1]] = upper[2, at_switch[1:]] = ceiling
+    lower = np.full(3 * n, gamma_min)
+    return [ca.vec(ca.vertcat(*rows))], [lower], [upper.ravel(order="F")]
+
+
+def hermite_simpson(
+    problem: Problem,
+    intervals: int,
+    pattern=None,
+    guess=None,
+    limit: int | None = None,
+    switch_ceiling: float | None = None,
+    branch: float = BRANCH_MARGIN,
+):
+    """Solve the problem by Hermite-Simpson collocation, without the regularity constraint or
+    with a pattern of signs of gamma.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem (objective ``torque``).
+    intervals : int
+        Collocation intervals over the motion.
+    pattern : (switch times [s], signs), optional
+        Where gamma changes sign and its sign on each piece between the file's nodes and these
+        times: ``sign * gamma >= gamma_min`` is then imposed, the torque free to step at a
+        switch (the flat plan's xi reset). None: no regularity constraint.
+    guess : Trajectory, optional
+        The initial guess (joint motion and torques; linear between its samples); the cold
+        guess between the nodes when None.
+    limit : int, optional
+        Most Ipopt iterations (the file's ``optimizer.solver.max_iter`` when None).
+    switch_ceiling : float, optional
+        With a pattern: ``sign * gamma <= switch_ceiling`` [m/s^2] on both sides of every
+        switch too (a smooth-torque flat plan switches at the margin).
+    branch : float
+        How far from the edge of the arm's branch the plan keeps
+        (:func:`cpopt.kinematics.branch_margin`).
 
     Returns
     -------
@@ -116,33 +216,54 @@ def hermite_simpson(problem: Problem, intervals: int):
     """
     w = _check(problem)
     tic = time.perf_counter()
-    knots, index = _intervals(problem, intervals)
+    switches, signs = pattern if pattern is not None else ((), None)
+    knots, index, phase = _intervals(problem, intervals, switches)
     n = knots.size - 1
-    X, M, U = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n), ca.MX.sym("U", 2, n)
+    X, M = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n)
+    torque = Torques(n, linear=signs is not None, steps=_knots_at(knots, switches))
     h = ca.DM(np.diff(knots)).T
     rhs = state_derivative(problem.arm).map(n)
-    f0, f1, fm = rhs(X[:, :-1], U), rhs(X[:, 1:], U), rhs(M, U)
+    f0, f1, fm = rhs(X[:, :-1], torque.start), rhs(X[:, 1:], torque.end), rhs(M, torque.middle)
     # Hermite-Simpson: the midpoint state of the cubic through the knots, Simpson's rule
     mid = M - 0.5 * (X[:, :-1] + X[:, 1:]) - ca.repmat(h / 8, 6, 1) * (f0 - f1)
     simpson = X[:, 1:] - X[:, :-1] - ca.repmat(h / 6, 6, 1) * (f0 + 4 * fm + f1)
-    g = [ca.vec(mid), ca.vec(simpson)]
-    lbg, ubg = [np.zeros(12 * n)], [np.zeros(12 * n)]
+    g = [ca.vec(mid), ca.vec(simpson), torque.joins]
+    lbg, ubg = [np.zeros(12 * n + torque.joins.numel())], [np.zeros(12 * n + torque.joins.numel())]
     for i, k in enumerate(index):
         rows, lo, hi = _node_rows(problem, i, X[:, k])
         g.append(ca.vertcat(*rows))
         lbg.append(lo)
         ubg.append(hi)
-    objective = w["torque"] * ca.sum2(h * ca.sum1(U**2))
-    nlp = {"x": ca.vertcat(ca.vec(X), ca.vec(U), ca.vec(M)), "f": objective, "g": ca.vertcat(*g)}
+    edge = branch_margin(problem.arm, ca.horzcat(X, M)[:3, :], branch)  # knots, midpoints
+    if edge is not None:
+        g.append(edge.T)
+        lbg.append(np.zeros(2 * n + 1))
+        ubg.append(np.full(2 * n + 1, np.inf))
+    if signs is not None:
+        at_switch = np.zeros(n + 1, bool)
+        if switch_ceiling is not None:
+            at_switch[_knots_at(knots, switches)] = True
+        sigma = np.asarray(signs, float)[phase]
+        rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, switch_ceiling)
+        g += rows
+        lbg += lower
+        ubg += upper
+    nlp = {
+        "x": ca.vertcat(ca.vec(X), torque.variables, ca.vec(M)),
+        "f": w["torque"] * torque.integral(h),
+        "g": ca.vertcat(*g),
+    }
     options = ipopt_options(problem.spec.optimizer.solver, False)
+    if limit is not None:
+        options["max_iter"] = min(limit, options["max_iter"])
     solver = ca.nlpsol(
         "seed", "ipopt", nlp, {"expand": False, "print_time": False, "ipopt": options}
     )
-    q, qd, tau = cold_guess(problem, knots)
+    q, qd, tau = cold_guess(problem, knots) if guess is None else warm_guess(guess, knots)
     states = np.column_stack([q, qd])
     middle = 0.5 * (states[:-1] + states[1:])
-    x0 = np.r_[states.ravel(), tau[:-1].ravel(), middle.ravel()]
-    lbx, ubx = _box(problem, n)
+    x0 = np.r_[states.ravel(), torque.guess(tau), middle.ravel()]
+    lbx, ubx = _box(problem, n, torque.count)
     lbx, ubx = np.r_[lbx, np.full(6 * n, -np.inf)], np.r_[ubx, np.full(6 * n, np.inf)]
     built = time.perf_counter()
     solution = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
@@ -151,13 +272,14 @@ def hermite_simpson(problem: Problem, intervals: int):
     said, status, iterations = read_stats(solver.stats())
     xs = np.asarray(solution["x"]).ravel()
     states = xs[: 6 * (n + 1)].reshape(n + 1, 6)
-    torques = xs[6 * (n + 1) : 6 * (n + 1) + 2 * n].reshape(n, 2)
-    plan = _plan(problem, knots, index, states, torques)
+    values = xs[6 * (n + 1) : 6 * (n + 1) + 2 * torque.count].reshape(torque.count, 2)
+    plan = (_linear_plan if torque.linear else _plan)(problem, knots, index, states, values)
     stats = SolverStats(
         iterations=iterations,
         build_time_s=built - tic,
         solve_time_s=solved - built,
-        message=f"Ipopt: {said} (Hermite-Simpson, {n} intervals, no gamma constraint)",
+        message=f"Ipopt: {said} (Hermite-Simpson, {n} intervals, "
+        + ("no gamma constraint)" if signs is None else f"signs of gamma {tuple(signs)})"),
         objective=float(solution["f"]),
     )
     return status, plan, stats
@@ -188,4 +310,42 @@ def _plan(problem: Problem, knots, index, states, torques) -> JointPlan:
     )
 
 
-__all__ = ["SUBSTEPS", "SeedUnsupportedError", "hermite_simpson"]
+def _linear_plan(problem: Problem, knots, index, states, values) -> JointPlan:
+    """The JointPlan of a solution with linear torques (``values``: each interval's start
+    torques, then its end torques), fine samples at :data:`SUBSTEPS` per interval on the
+    cubic Hermite interpolants of q (from q, qd) and qd (from qd, qdd) and the linear torque."""
+    n = knots.size - 1
+    start, end = values[:n], values[n:]
+    rhs = state_derivative(problem.arm).map(n)
+    h = np.diff(knots)[:, None, None]
+    x0, x1 = states[:-1], states[1:]
+    d0 = np.asarray(rhs(x0.T, start.T)).T  # (qd, qdd) at each interval's start
+    d1 = np.asarray(rhs(x1.T, end.T)).T
+    s = (np.arange(SUBSTEPS) / SUBSTEPS)[None, :, None]
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    fine_x = (
+        h00 * x0[:, None] + h10 * h * d0[:, None] + h01 * x1[:, None] + h11 * h * d1[:, None]
+    ).reshape(n * SUBSTEPS, 6)
+    fine_tau = ((1 - s) * start[:, None] + s * end[:, None]).reshape(n * SUBSTEPS, 2)
+    t = (knots[:-1, None] + np.diff(knots)[:, None] * s[..., 0]).ravel()
+    reached = pose_states(problem.arm, states)
+    nodes = [Node(float(knots[k]), *reached[k], 0.0, 0.0) for k in index]
+    return JointPlan(
+        arm=problem.arm,
+        nodes=tuple(nodes),
+        knots=knots,
+        q=states[:, :3],
+        qd=states[:, 3:],
+        tau=0.5 * (start + end),
+        fine={
+            "t": np.r_[t, knots[-1]],
+            "q": np.vstack([fine_x[:, :3], states[-1, :3]]),
+            "qd": np.vstack([fine_x[:, 3:], states[-1, 3:]]),
+            "tau": np.vstack([fine_tau, end[-1]]),
+        },
+        sigma=0,
+    )
+
+
+__all__ = ["SUBSTEPS", "SeedUnsupportedError", "Torques", "hermite_simpson"]

@@ -47,7 +47,7 @@ from .. import progress
 from ..nodes import MIN_PHASE
 from ..problem import MAX_SWITCHES, Problem
 from ..trajectory import sample
-from .seed import Seed, coarse_seed
+from .seed import Seed, coarse_seed, patterned_seed
 from .switching import (
     DOMINATED_EARLIEST,
     POLISH_LIMIT,
@@ -122,6 +122,10 @@ a hard random problem (several switches, 30-90 ms an iteration) that would lose 
 wanders for thousands; the winners measured took 171 (``swing_up_switches``), 208
 (``transfer_switch``) and 444 (a random RRR swing-up, 246 of them refining). Iterations, not
 seconds, so that a search gives the same plan on a slower or busier machine."""
+HOPELESS = 1.1
+"""A pattern whose patterned seed (coarse collocation with its signs of gamma imposed) costs
+more than this times the one-sign bound is not solved flat (:meth:`Run.hopeless`): the flat
+plan of a pattern costs more than its coarse collocation, up to the coarse grid's error."""
 NEAR = 0.1
 """A switch closer than this fraction of the motion to the start, the goal or a pinned via
 state gets alternatives (:func:`near_alternatives`)."""
@@ -203,7 +207,7 @@ def near_alternatives(problem: Problem, pattern: Pattern, wanted) -> list[Patter
     return out
 
 
-STAGES = ("bound", "flat", "near", "polish", "greedy")
+STAGES = ("bound", "patterned", "flat", "near", "polish", "greedy")
 """The search's stages after the seed, as ``solver.search`` names their figures."""
 
 
@@ -221,6 +225,29 @@ class Run:
     bound: object = None
     tried: list = field(default_factory=list)
     stages: dict = field(default_factory=lambda: {name: Stage() for name in STAGES})
+    shaped: dict = field(default_factory=dict)
+
+    def patterned(self, pattern: Pattern) -> Seed | None:
+        """The seed solved again with ``pattern`` imposed (:func:`~cpopt.flatopt.seed.
+        patterned_seed`; once per pattern, counted in the stage ``patterned``)."""
+        if pattern not in self.shaped:
+            progress.stage(f"switch search: the seed with {len(pattern.times)} switch(es)")
+            tic = time.perf_counter()
+            shaped = patterned_seed(self.problem, self.seed, pattern.times, pattern.signs)
+            figures = self.stages["patterned"]
+            figures.iterations += shaped.report.iterations if shaped else 0
+            figures.time_s += time.perf_counter() - tic
+            figures.tried += 1
+            self.shaped[pattern] = shaped
+        return self.shaped[pattern]
+
+    def hopeless(self, pattern: Pattern) -> bool:
+        """True when the pattern's patterned seed costs more than :data:`HOPELESS` times the
+        solved bound: its flat plan, restricted further, will not beat the bound."""
+        shaped = self.patterned(pattern)
+        if shaped is None or self.bound is None or self.bound.status != "solved":
+            return False
+        return shaped.report.objective > HOPELESS * self.bound.objective
 
     def late(self) -> bool:
         """True once the deadline has passed or the stages with switches have spent their
@@ -240,18 +267,19 @@ class Run:
             for a in self.tried
         )
 
-    def attempt(self, stage: str, pattern: Pattern, start, **options):
+    def attempt(self, stage: str, pattern: Pattern, start, cap=None, **options):
         """Solve ``pattern`` from the trajectory ``start`` (:func:`solve_pattern`) within the
-        iterations left, counted in ``stage`` and kept among the attempts."""
+        iterations left, or ``cap`` iterations (whatever is left), counted in ``stage`` and
+        kept among the attempts."""
         tic = time.perf_counter()
-        left = self.iterations_left
+        left = self.iterations_left if cap is None else cap
         limit = None if math.isinf(left) else max(int(left), 1)
         result = solve_pattern(
             self.solve, self.problem, pattern, start, limit, refine_past_limit=True, **options
         )
         self.stages[stage].add(result, tic)
         self.tried.append(result)
-        self.iterations_left -= result.iterations
+        self.iterations_left -= result.iterations if cap is None else 0
         return result
 
 
@@ -291,13 +319,14 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
         notes.append("search deadline reached before the seed's pattern")
     else:
         seeded = _seeded_attempt(run, pattern)
-        if _better(seeded, best):
+        if seeded is not None and _better(seeded, best):
             best, method = seeded, "seed"
-        notes.append(_verdict(seeded, run.bound))
-        if seeded.status != "solved":  # a solved plan's near switches: the polish drops them
+        notes.append(_verdict(seeded, run))
+        failed = seeded is None or seeded.status != "solved"
+        if failed:  # a solved plan's near switches: the polish drops them
             best, method = _near(run, pattern, best, method)
         best, method = _polished(run, best, method, notes)
-        if seeded.status != "solved" and method == "one_sign" and not run.late():
+        if failed and method == "one_sign" and not run.late():
             best, method = _grown(run, best, method, notes)
     if time.monotonic() > run.deadline:
         notes.append("search deadline reached")
@@ -332,21 +361,84 @@ def _one_sign_bound(run: Run):
     return best
 
 
+PATTERNED_RETRY = 250
+"""Ipopt iterations (before its first solved round) a pattern's second start gets after its
+first failed, beyond the iterations left to the search (that failure has often spent them
+all: a random RPR transfer failed after 497 iterations from the seed, and solved in 193 from
+its patterned seed; the heavier swing_up_holding the other way round)."""
+
+
+PROBE_RATIO = 0.1
+"""A pattern's flat solve starts from its patterned seed first when the flat objective there
+is below this fraction of the one at the fit of the unconstrained seed (:func:`_starts`)."""
+
+
+def _first_objective(run: Run, pattern: Pattern, start) -> float:
+    """The flat objective at the fit of ``start`` (Ipopt stopped at its first iterate)."""
+    first: list[float] = []
+
+    def probe(iteration: int, objective: float, infeasibility: float = 0.0) -> bool:
+        first.append(objective)
+        return True
+
+    solve_pattern(run.solve, run.problem, pattern, start, 1, probe)
+    return first[0] if first and math.isfinite(first[0]) else math.inf
+
+
+def _starts(run: Run, pattern: Pattern) -> list:
+    """Where a pattern's flat solve starts, in order: the unconstrained seed (the bundled
+    problems' winners start there), then its patterned seed; the other way round when the fit
+    of the seed starts far higher. Measured at the first iterate: the benchmark transfer
+    2.0e5 from the seed, 1.1e5 from its patterned seed (which then wanders: seed first); a
+    random RPR transfer 1.4e13 and 1.4e4, a random RRR transfer 9.5e27 and 1.2e5, where the
+    seed's fit leaves the reach."""
+    shaped = run.patterned(pattern)
+    if shaped is None:
+        return [run.seed.trajectory]
+    tic = time.perf_counter()
+    seeded = _first_objective(run, pattern, run.seed.trajectory)
+    patterned = _first_objective(run, pattern, shaped.trajectory)
+    run.stages["patterned"].time_s += time.perf_counter() - tic
+    if patterned < PROBE_RATIO * seeded:
+        return [shaped.trajectory, run.seed.trajectory]
+    return [run.seed.trajectory, shaped.trajectory]
+
+
+def _pattern_attempts(run: Run, stage: str, pattern: Pattern, bar):
+    """One pattern solved flat from its starts (:func:`_starts`); the second, when the first
+    did not solve, gets :data:`PATTERNED_RETRY` iterations of its own; without a patterned
+    seed the retry is from the closed form. None when its patterned seed is hopeless
+    (:meth:`Run.hopeless`)."""
+    if run.hopeless(pattern):
+        return None
+    starts = _starts(run, pattern)
+    best = run.attempt(stage, pattern, starts[0], abandon=bar)
+    if best.status == "solved" or time.monotonic() > run.deadline:
+        return best
+    if len(starts) > 1:
+        retry = run.attempt(stage, pattern, starts[1], abandon=bar, cap=PATTERNED_RETRY)
+    elif best.status not in ("dominated", "time_limit") and not run.late():
+        retry = run.attempt(stage, pattern, None, abandon=_bar(run.bound))
+    else:
+        return best
+    return retry if _better(retry, best) else best
+
+
 def _seeded_attempt(run: Run, pattern: Pattern):
-    """The seed's pattern from the seed, then from the closed form when that did not solve,
-    then cut to fewer switches (:func:`_fewest`); each abandoned once the bound dominates it."""
+    """The seed's pattern (:func:`_pattern_attempts`), then cut to fewer switches
+    (:func:`_fewest`) when it did not solve; each abandoned once the bound dominates it. None
+    when nothing was tried."""
     progress.stage(f"switch search: the seed's pattern, {len(pattern.times)} switch(es)")
     bar = _bar(run.bound, seeded=True)
-    best = run.attempt("flat", pattern, run.seed.trajectory, abandon=bar)
-    if best.status not in ("solved", "dominated", "time_limit") and not run.late():
-        retry = run.attempt("flat", pattern, None, abandon=_bar(run.bound))
-        best = retry if _better(retry, best) else best
+    best = _pattern_attempts(run, "flat", pattern, bar)
     fewer = _fewest(run, pattern)
-    if best.status != "solved" and fewer is not None and not run.late():
-        progress.stage("switch search: the seed's strongest crossing alone")
-        single = run.attempt("flat", fewer, run.seed.trajectory, abandon=bar)
-        best = single if _better(single, best) else best
-    return best
+    if (best is not None and best.status == "solved") or fewer is None or run.late():
+        return best
+    progress.stage("switch search: the seed's strongest crossing alone")
+    single = _pattern_attempts(run, "flat", fewer, bar)
+    if single is None:
+        return best
+    return single if best is None or _better(single, best) else best
 
 
 def _fewest(run: Run, pattern: Pattern) -> Pattern | None:
@@ -371,9 +463,9 @@ def _near(run: Run, pattern: Pattern, best, method: str):
         if run.solved_before(alternative):
             continue
         progress.stage(f"switch search: near a node, {len(alternative.times)} switch(es)")
-        attempt = run.attempt(
-            "near", alternative, run.seed.trajectory, abandon=_bar(best, run.bound, seeded=True),
-        )  # fmt: skip
+        attempt = _pattern_attempts(run, "near", alternative, _bar(best, run.bound, seeded=True))
+        if attempt is None:
+            continue
         if _better(attempt, best):
             best, method = attempt, "near"
     return best, method
@@ -413,8 +505,13 @@ def _grown(run: Run, best, method: str, notes: list):
     return (grown, "greedy") if _better(grown, best) else (best, method)
 
 
-def _verdict(seeded, bound) -> str:
+def _verdict(seeded, run: Run) -> str:
     """What became of the seed's pattern, against the bound."""
+    bound = run.bound
+    if seeded is None:
+        costs = [s.report.objective for s in run.shaped.values() if s is not None]
+        ratio = min(costs) / bound.objective if costs else math.nan
+        return f"the seed's pattern costs {ratio:.3g} x the bound on the coarse grid: not tried"
     if seeded.status == "dominated":
         return f"the seed's pattern dominated by the one-sign bound ({seeded.ipopt_status})"
     if seeded.status != "solved":
