@@ -91,6 +91,13 @@ def make_parser() -> argparse.ArgumentParser:
     check = sub.add_parser("check", help="validate problem files without solving")
     check.add_argument("files", nargs="+", type=_path, metavar="FILE")
     sub.add_parser("list", help="show the bundled problems")
+    export = sub.add_parser(
+        "export-urdf", help="write a problem's arm as URDF (arm: {urdf: FILE} reads it back)"
+    )
+    export.add_argument("file", type=_path, metavar="FILE", help="a YAML problem file")
+    export.add_argument(
+        "--out", type=_path, metavar="OUT.urdf", help="write OUT.urdf (default: standard output)"
+    )
     return parser
 
 
@@ -295,6 +302,32 @@ def _cmd_solve(args) -> int:
     return code
 
 
+def _cmd_export_urdf(args) -> int:
+    from .output import OutputError, atomic_write, check_directory
+
+    problem, error = _load(args.file)
+    if error:
+        _error(error)
+        return EXIT_BAD_INPUT
+    text = problem.to_urdf()
+    if args.out is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    out = Path(args.out)
+    try:
+        if out.is_dir():
+            raise OutputError(f"{out}: is a folder; expected a file name")
+        if not out.parent.is_dir():
+            raise OutputError(f"{out}: {out.parent} is not an existing folder")
+        check_directory(out.parent)
+        atomic_write(out, lambda handle: handle.write(text))
+    except OSError as err:
+        _error(f"--out {err}")
+        return EXIT_BAD_INPUT
+    print(f"wrote {out} (joints joint1, joint2, joint3)")
+    return EXIT_OK
+
+
 def _cmd_list() -> int:
     from .problem import ProblemError, bundled_problems, load_problem
 
@@ -347,6 +380,8 @@ def main(argv: list[str] | None = None) -> int:
                 return _cmd_check(args.files)
             if args.command == "list":
                 return _cmd_list()
+            if args.command == "export-urdf":
+                return _cmd_export_urdf(args)
             if args.command == "sweep":
                 from .sweep.run import main as sweep_main
 
