@@ -22,6 +22,7 @@ VERSIONS = (
     "PyYAML",
     "pydantic",
     "distributed",
+    "pin",
 )
 """The dependencies whose versions a run reports (CI installs the newest allowed ones)."""
 
