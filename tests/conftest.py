@@ -23,6 +23,7 @@ VERSIONS = (
     "pydantic",
     "distributed",
     "pin",
+    "mujoco",
 )
 """The dependencies whose versions a run reports (CI installs the newest allowed ones)."""
 

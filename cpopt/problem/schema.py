@@ -296,8 +296,10 @@ class FrictionSpec(_Spec):
 
 
 class PlantSpec(_Spec):
-    """The simulated arm: link overrides, friction, torque limits [N m or N]."""
+    """The simulated arm: link overrides, friction, torque limits [N m or N], and the engine
+    that integrates it (``cpopt``, the built-in plant, or ``mujoco``)."""
 
+    engine: Literal["cpopt", "mujoco"] = "cpopt"
     links: Triple(PlantLinkSpec | None) | None = None
     friction: FrictionSpec = FrictionSpec()
     torque_limit: Pair(Positive | None) | None = None
