@@ -75,6 +75,14 @@ def make_parser() -> argparse.ArgumentParser:
     solve.add_argument("--plot", action="store_true", help="also write PNG figures")
     solve.add_argument("--animate", action="store_true", help="also write arm.gif")
     solve.add_argument(
+        "--engine",
+        choices=("matplotlib", "mujoco"),
+        default="matplotlib",
+        metavar="ENGINE",
+        help="what draws arm.gif: matplotlib (default) or mujoco (MuJoCo's offscreen renderer, "
+        "the tracked arm beside the plan; needs cpopt[mujoco] and EGL or OSMesa)",
+    )
+    solve.add_argument(
         "--time-limit",
         type=_seconds,
         metavar="SECONDS",
@@ -270,9 +278,23 @@ def _write(solution, problem, outdir: Path, args) -> None:
                 o = problem.spec.optimizer
                 gamma_min = None if problem.planner == "closed_form" else o.gamma_min
                 write_figures(solution, outdir, o.limits.torque, gamma_min)
-            if args.animate:
+            if args.animate and args.engine == "mujoco":
+                _render(solution, outdir / "arm.gif")
+            elif args.animate:
                 animate(solution, outdir / "arm.gif")
         write_solution(solution, outdir)
+
+
+def _render(solution, path: Path) -> None:
+    """arm.gif from MuJoCo; where no OpenGL context can be made, a note instead (not a
+    failure: the results are written all the same)."""
+    from .mujoco_render import RenderUnavailableError
+    from .solution import Solution
+
+    try:
+        Solution.of(solution).render(path)
+    except RenderUnavailableError as err:
+        print(f"{solution.name}: arm.gif skipped: {err}", file=sys.stderr, flush=True)
 
 
 def _cmd_solve(args) -> int:
@@ -280,6 +302,12 @@ def _cmd_solve(args) -> int:
     from .isolate import solve_isolated
 
     out = Path(args.out)
+    if args.engine == "mujoco" and args.animate:
+        import importlib.util
+
+        if importlib.util.find_spec("mujoco") is None:
+            _error("--engine mujoco: MuJoCo is not installed: pip install 'cpopt[mujoco]'")
+            return EXIT_BAD_INPUT
     problems, bad_files = _problems(args.files)
     problems, bad_outputs = _outputs(problems, out)
     if bad_outputs and not problems:

@@ -103,7 +103,7 @@ def add_arm(spec, arm: Arm, prefix: str = "", viscous=(0.0, 0.0, 0.0), rgba=None
         body.add_geom(
             type=mujoco.mjtGeom.mjGEOM_CAPSULE,
             fromto=[*_xyz(*a), *_xyz(*b)],
-            size=[0.03 if i < 2 else 0.02, 0, 0],
+            size=[0.04 if i < 2 else 0.03, 0, 0],
             contype=0,
             conaffinity=0,
             mass=0.0,
@@ -112,10 +112,22 @@ def add_arm(spec, arm: Arm, prefix: str = "", viscous=(0.0, 0.0, 0.0), rgba=None
         parent = body
 
 
-def arm_model(arm: Arm, timestep: float = 5e-4, viscous=(0.0, 0.0, 0.0), ghost: Arm | None = None):
-    """The compiled ``mujoco.MjModel`` of an arm: motors on joints 1 and 2 (unlimited; the
-    caller saturates), gravity along -z, no contacts, RK4 at ``timestep`` [s]; with ``ghost``, a
-    second, translucent arm (prefix ``ghost_``) for pictures of a plan beside a tracked arm.
+def arm_model(arm: Arm, timestep: float = 5e-4, viscous=(0.0, 0.0, 0.0)):
+    """The compiled ``mujoco.MjModel`` of :func:`arm_spec`.
+
+    Raises
+    ------
+    MujocoMissingError
+        Without MuJoCo.
+    """
+    return arm_spec(arm, timestep, viscous).compile()
+
+
+def arm_spec(arm: Arm, timestep: float = 5e-4, viscous=(0.0, 0.0, 0.0), ghost: Arm | None = None):
+    """The ``mujoco.MjSpec`` of an arm: motors on joints 1 and 2 (unlimited; the caller
+    saturates), gravity along -z, no contacts, RK4 at ``timestep`` [s], joint damping
+    ``viscous``; with ``ghost``, a second, translucent arm (prefix ``ghost_``) for pictures of a
+    plan beside a tracked arm.
 
     Raises
     ------
@@ -139,8 +151,8 @@ def arm_model(arm: Arm, timestep: float = 5e-4, viscous=(0.0, 0.0, 0.0), ghost: 
             gear=[1.0, 0, 0, 0, 0, 0],
         )
     if ghost is not None:
-        add_arm(spec, ghost, prefix="ghost_", rgba=(0.6, 0.6, 0.6, 0.35))
-    return spec.compile()
+        add_arm(spec, ghost, prefix="ghost_", rgba=(0.55, 0.55, 0.55, 0.35))
+    return spec
 
 
 def arm_state(model, data, q, qd=None) -> None:

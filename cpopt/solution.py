@@ -198,6 +198,54 @@ class Solution(results.Solution):
             return plotting.plot_tracking(self)
         return {"third_link": plotting.plot_third_link, "arm": plotting.plot_arm}[kind](self, ax)
 
+    def render(
+        self, path: str | Path, fps: float = 25.0, tracked: bool = True, at: float = 0.0
+    ) -> str:
+        """Write a GIF of the arm (a ``.png`` path: its frame at time ``at``) from MuJoCo's
+        offscreen renderer, as ``cpopt solve --animate --engine mujoco`` does: the planned arm,
+        and the tracked arm solid beside it (the plan translucent) when the plan was tracked.
+
+        Parameters
+        ----------
+        path : str or Path
+            Output ``.gif`` or ``.png``.
+        fps : float
+            Frames per second of real time.
+        tracked : bool
+            Draw the tracked arm too, when there is one.
+        at : float
+            The time of a ``.png`` picture [s].
+
+        Returns
+        -------
+        str
+            The OpenGL backend that rendered (``egl`` or ``osmesa``).
+
+        Raises
+        ------
+        ValueError
+            Without a plan.
+        cpopt.mujoco_render.RenderUnavailableError
+            Where no OpenGL context can be made (EGL, then OSMesa, were tried).
+        cpopt.mujoco_arm.MujocoMissingError
+            Without MuJoCo (``pip install 'cpopt[mujoco]'``).
+        """
+        from .mujoco_render import render
+
+        if self.plan is None:
+            raise ValueError(f"{self.name}: no plan to render (status {self.status})")
+        t = np.linspace(0.0, self.plan.duration, max(2, round(self.plan.duration * fps) + 1))
+        if Path(path).suffix.lower() == ".png":
+            t = np.array([at])
+        q_plan = self.sample(t).q
+        q_tracked = None
+        outcome = self.tracking
+        if tracked and outcome is not None and hasattr(outcome, "x"):
+            q_tracked = np.column_stack(
+                [np.interp(t, outcome.t[: len(outcome.x)], outcome.x[:, i]) for i in range(3)]
+            )
+        return render(self.plan.arm, q_plan, path, q_tracked, fps)
+
     def _drawn_limits(self):
         """The torque limits and gamma margin the CLI draws (none without a problem)."""
         if self.problem is None:

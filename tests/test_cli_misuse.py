@@ -156,6 +156,7 @@ FAMILIES = {
     "BASE.yaml": _files,
     "DIR": _folders,
     "OUT.urdf": _out_files,
+    "ENGINE": lambda: ["", "opengl", "MuJoCo", "mujoco,matplotlib"],
     "ADDRESS": _addresses,
     "KEY=SPEC": _specs,
 }
