@@ -10,6 +10,8 @@ raises :class:`RenderUnavailableError` with each backend's reason. Shadows are o
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 import subprocess
 import sys
@@ -20,11 +22,55 @@ from pathlib import Path
 import numpy as np
 
 from .robot import Arm, Link
+from .safe_yaml import echo
 
 BACKENDS = ("egl", "osmesa")
 """MuJoCo's offscreen OpenGL backends, tried in this order."""
 RENDER_TIMEOUT = 300.0
 """Longest a child process may render [s]."""
+
+
+SUFFIXES = (".gif", ".png")
+"""What :func:`render` writes: an animation, or one frame."""
+
+ImageFile = str | Path
+"""A ``.gif`` or ``.png`` file to write, in an existing folder."""
+Time = float
+"""A time within a plan [s]."""
+
+
+def _real(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def check_render_arguments(path, fps, tracked, at, duration: float) -> Path:
+    """Refuse bad arguments of :meth:`cpopt.Solution.render` before any work, naming each.
+
+    Returns
+    -------
+    Path
+        The output file.
+
+    Raises
+    ------
+    ValueError
+        One line naming the argument and what was expected.
+    """
+    if not isinstance(path, str | Path) or not str(path).strip():
+        raise ValueError(f"path: expected a .gif or .png file name, got {echo(path)}")
+    out = Path(path)
+    if out.suffix.lower() not in SUFFIXES:
+        raise ValueError(f"path: expected a .gif or .png file name, got {echo(str(path))}")
+    if out.is_dir() or not out.parent.is_dir():
+        why = "is a folder" if out.is_dir() else f"{out.parent} is not an existing folder"
+        raise ValueError(f"path: {out} {why}; expected a file in an existing folder")
+    if not (_real(fps) and math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps: expected a finite number of frames per second > 0, got {echo(fps)}")
+    if not isinstance(tracked, bool):
+        raise ValueError(f"tracked: expected True or False, got {echo(tracked)}")
+    if not (_real(at) and math.isfinite(at) and 0 <= at <= duration):
+        raise ValueError(f"at: expected a time in [0, {duration:g}] s, got {echo(at)}")
+    return out
 
 
 class RenderUnavailableError(RuntimeError):

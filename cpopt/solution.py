@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import results
+from .mujoco_render import ImageFile, Time, check_render_arguments
 from .problem import Problem
 from .safe_yaml import echo
 from .trajectory import Trajectory, sample_at
@@ -199,7 +200,7 @@ class Solution(results.Solution):
         return {"third_link": plotting.plot_third_link, "arm": plotting.plot_arm}[kind](self, ax)
 
     def render(
-        self, path: str | Path, fps: float = 25.0, tracked: bool = True, at: float = 0.0
+        self, path: ImageFile, fps: float = 25.0, tracked: bool = True, at: Time = 0.0
     ) -> str:
         """Write a GIF of the arm (a ``.png`` path: its frame at time ``at``) from MuJoCo's
         offscreen renderer, as ``cpopt solve --animate --engine mujoco`` does: the planned arm,
@@ -208,13 +209,13 @@ class Solution(results.Solution):
         Parameters
         ----------
         path : str or Path
-            Output ``.gif`` or ``.png``.
+            Output ``.gif`` or ``.png``, in an existing folder.
         fps : float
             Frames per second of real time.
         tracked : bool
             Draw the tracked arm too, when there is one.
         at : float
-            The time of a ``.png`` picture [s].
+            The time of a ``.png`` picture [s], within the plan.
 
         Returns
         -------
@@ -224,7 +225,7 @@ class Solution(results.Solution):
         Raises
         ------
         ValueError
-            Without a plan.
+            Without a plan, or for a bad argument (named).
         cpopt.mujoco_render.RenderUnavailableError
             Where no OpenGL context can be made (EGL, then OSMesa, were tried).
         cpopt.mujoco_arm.MujocoMissingError
@@ -234,9 +235,11 @@ class Solution(results.Solution):
 
         if self.plan is None:
             raise ValueError(f"{self.name}: no plan to render (status {self.status})")
-        t = np.linspace(0.0, self.plan.duration, max(2, round(self.plan.duration * fps) + 1))
-        if Path(path).suffix.lower() == ".png":
-            t = np.array([at])
+        duration = self.plan.duration
+        path = check_render_arguments(path, fps, tracked, at, duration)
+        t = np.linspace(0.0, duration, max(2, round(duration * fps) + 1))
+        if path.suffix.lower() == ".png":
+            t = np.array([float(at)])
         q_plan = self.sample(t).q
         q_tracked = None
         outcome = self.tracking

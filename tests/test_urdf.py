@@ -15,7 +15,7 @@ from conftest import PROBLEMS
 
 import cpopt
 from cpopt.cli import main
-from cpopt.problem import ProblemError, load_problem
+from cpopt.problem import ProblemError, load_problem, parse_problem
 from cpopt.urdf import JOINTS, UrdfError, arm_urdf, parse_urdf, urdf_arm
 
 KINDS = {
@@ -312,3 +312,22 @@ def test_load_takes_the_urdf_by_key_path(tmp_path, monkeypatch):
     )
     assert problem.arm.kind == "RPR"
     assert problem.replace(**{"motion.duration": 2.0}).arm == problem.arm
+
+
+def test_a_sweep_over_a_urdf_problem_finds_the_file_from_any_folder(tmp_path, monkeypatch):
+    from cpopt.sweep.spec import build_points, parse_vary
+
+    folder = tmp_path / "study"
+    (folder / "arms").mkdir(parents=True)
+    (folder / "arms/arm.urdf").write_text(
+        (PROBLEMS / "arms/rrr_hanging.urdf").read_text(encoding="utf-8")
+    )
+    base = folder / "base.yaml"
+    base.write_text((PROBLEMS / "urdf_swing_up.yaml").read_text().replace(
+        "arms/rrr_hanging.urdf", "arms/arm.urdf"
+    ))  # fmt: skip
+    monkeypatch.chdir(tmp_path)  # not the problem's folder
+    points = build_points(str(base.relative_to(tmp_path)), [parse_vary("motion.duration=1.6,1.7")])
+    assert [p.data["arm"]["urdf"] for p in points] == [str(folder / "arms/arm.urdf")] * 2
+    monkeypatch.chdir(PROBLEMS)  # wherever a worker runs
+    assert parse_problem(points[1].data, "point").arm.links[1].length == pytest.approx(1.5)

@@ -55,6 +55,18 @@ def urdf_path(urdf: str, source: str) -> Path:
     return (where.parent if where.is_file() else Path.cwd()) / path
 
 
+def absolute_urdf(data, source: str):
+    """Problem data whose relative ``arm.urdf`` is made absolute from ``source``'s folder (a
+    copy; other data returned as it is): for data validated later under another name (a
+    sweep's points, a Dask worker's working folder)."""
+    arm = data.get("arm") if isinstance(data, dict) else None
+    if not (isinstance(arm, dict) and isinstance(arm.get("urdf"), str) and arm["urdf"].strip()):
+        return data
+    out = copy.deepcopy(data)
+    out["arm"]["urdf"] = str(urdf_path(arm["urdf"], source).resolve())
+    return out
+
+
 def expand_urdf(data: dict, source: str) -> dict:
     """Problem data whose ``arm`` is read from a URDF, as plain problem data (a copy); other
     data unchanged.
