@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 
+import casadi as ca
 import numpy as np
 
 from ..kinematics import kinematic_functions
@@ -53,7 +54,7 @@ class _Log:
 
     def add(self, x, qdd, tau, saturated, cp, s) -> None:
         for key, value in zip(self.rows, (x, qdd, tau, saturated, cp), strict=True):
-            self.rows[key].append(value)
+            self.rows[key].append(np.array(value))
         self.progress.append(s)
 
     def joined(self, x_last, cp_last, s_last) -> dict:
@@ -65,6 +66,57 @@ class _Log:
         out["tau"] = out["tau"].reshape(-1, 2)
         out["saturated"] = out["saturated"].astype(bool)
         return out
+
+
+def controller_period(controller: Controller) -> ca.Function:
+    """``(r, x, noise, c) -> (tau, c_next, cp)``: the controller's law on the measured state
+    x + noise, and the CP of the true state x through the model's kinematics [m]."""
+    law, model = controller.law(), controller.reference.arm
+    r = ca.MX.sym("r", law.size1_in(0))
+    x, noise, c = ca.MX.sym("x", 6), ca.MX.sym("noise", 6), ca.MX.sym("c", 2)
+    measured = x + noise
+    tau, c_next = law(r, measured[:3], measured[3:], c)
+    s = kinematic_functions(model)["pose"](x[:3])
+    cp = s[:2] + model.K * ca.vertcat(ca.cos(s[2]), ca.sin(s[2]))
+    outs = [ca.densify(v) for v in (tau, c_next, cp)]
+    return ca.Function("controller_period", [r, x, noise, c], outs)
+
+
+class _Buffered:
+    """A CasADi function evaluated through its zero-copy buffer into arrays kept between calls
+    (a call through DM cost four times MuJoCo's two steps of a period)."""
+
+    def __init__(self, f: ca.Function) -> None:
+        self.buffer, self.trigger = f.buffer()
+        self.ins = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+        self.outs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
+        for i, a in enumerate(self.ins):
+            self.buffer.set_arg(i, memoryview(a))
+        for i, o in enumerate(self.outs):
+            self.buffer.set_res(i, memoryview(o))
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        for target, value in zip(self.ins, args, strict=True):
+            target[:] = np.ravel(value, order="F")
+        self.trigger()
+        return [o.copy() for o in self.outs]
+
+
+def _period(mujoco, model, data, tau: np.ndarray, substeps: int):
+    """Hold tau (2,) over one control period; the accelerations at its start (3,), as the
+    built-in plant logs them, and the state (6,) at its end."""
+    data.ctrl[:2] = tau
+    mujoco.mj_forward(model, data)
+    qdd = data.qacc[:3].copy()
+    for _ in range(substeps):
+        mujoco.mj_step(model, data)
+    return qdd, np.concatenate([data.qpos[:3], data.qvel[:3]])
+
+
+def _diverged(x: np.ndarray, cp_error: float) -> bool:
+    """The built-in plant's rule: a non-finite state, a joint too fast, the CP too far off."""
+    finite = bool(np.all(np.isfinite(x)))
+    return not (finite and np.all(np.abs(x[3:]) <= DIVERGED_VELOCITY) and cp_error <= DIVERGED_CP)
 
 
 def simulate_mujoco(controller: Controller, plant: Plant, noise: Noise | None = None) -> Batch:
@@ -90,20 +142,17 @@ def simulate_mujoco(controller: Controller, plant: Plant, noise: Noise | None = 
         Without MuJoCo.
     """
     mujoco = require_mujoco()
-    ref = controller.reference
-    noise = noise or Noise()
+    ref, noise = controller.reference, noise or Noise()
     substeps = steps_per_period(ref.period)
     model = arm_model(plant.arm, ref.period / substeps, plant.viscous)
     data = mujoco.MjData(model)
-    law, schedule, t = controller.law(), controller.schedule(), controller.times
-    pose = kinematic_functions(ref.arm)["pose"]
-    K = ref.arm.K
+    law, schedule, t = (
+        _Buffered(controller_period(controller)),
+        controller.schedule(),
+        controller.times,
+    )
     rng, std = np.random.default_rng([noise.seed, 0]), noise.std
     limit = np.array([NO_LIMIT if v is None else v for v in (plant.torque_limit or (None, None))])
-
-    def cp_of(x):
-        s = np.asarray(pose(x[:3])).ravel()
-        return s[:2] + K * np.array([np.cos(s[2]), np.sin(s[2]), 0.0])[:2]
 
     def progress(k, c):
         return float(np.ravel(controller.progress(np.array([k]), c[:, None]))[0])
@@ -114,31 +163,24 @@ def simulate_mujoco(controller: Controller, plant: Plant, noise: Noise | None = 
     arrival, s_k = np.nan, progress(0, c)
     with coulomb_friction(plant.coulomb):
         for k in range(controller.horizon):
-            measured = x + (rng.standard_normal(6) * std if std.any() else 0.0)
-            tau_cmd, c_next = law(schedule[:, k], measured[:3], measured[3:], c)
-            tau_cmd = np.asarray(tau_cmd).ravel()
+            e = rng.standard_normal(6) * std if std.any() else np.zeros(6)
+            tau_cmd, c_next, cp = law(schedule[:, k], x, e, c)
             tau = np.clip(tau_cmd, -limit, limit)
-            data.ctrl[:2] = tau
-            mujoco.mj_forward(model, data)
-            qdd = data.qacc[:3].copy()  # at the instant, as the built-in plant logs it
-            for _ in range(substeps):
-                mujoco.mj_step(model, data)
-            x_next = np.concatenate([data.qpos[:3], data.qvel[:3]])
-            cp = cp_of(x)
+            qdd, x_next = _period(mujoco, model, data, tau, substeps)
             err = float(np.linalg.norm(cp - plan_cp_at(ref, np.array(s_k))))
             log.add(x, qdd, tau, bool(np.any(tau != tau_cmd)), cp, ref.t[0] + s_k * ref.period)
             figures["max_err"] = max(figures["max_err"], err)
             figures["max_lag"] = max(figures["max_lag"], (k - s_k) * ref.period)
-            c = np.asarray(c_next).ravel()
-            s_k, x = progress(k + 1, c), x_next
-            diverged = not (np.all(np.isfinite(x)) and np.all(np.abs(x[3:]) <= DIVERGED_VELOCITY))
-            if diverged or not err <= DIVERGED_CP:
+            c, x = c_next, x_next
+            s_k = progress(k + 1, c)
+            if _diverged(x, err):
                 figures["diverged_at"] = t[k + 1]
                 break
             if s_k >= ref.steps - 1e-9:
                 arrival = t[k + 1]
                 break
-    return _batch(ref, t, x, cp_of(x), s_k, log, figures, arrival)
+    cp_last = law(schedule[:, min(k + 1, schedule.shape[1] - 1)], x, np.zeros(6), c)[2]
+    return _batch(ref, t, x, cp_last, s_k, log, figures, arrival)
 
 
 def _batch(ref, t, x, cp, s_last, log: _Log, figures: dict, arrival: float) -> Batch:
