@@ -331,3 +331,23 @@ def test_a_sweep_over_a_urdf_problem_finds_the_file_from_any_folder(tmp_path, mo
     assert [p.data["arm"]["urdf"] for p in points] == [str(folder / "arms/arm.urdf")] * 2
     monkeypatch.chdir(PROBLEMS)  # wherever a worker runs
     assert parse_problem(points[1].data, "point").arm.links[1].length == pytest.approx(1.5)
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_any_base_centre_of_mass_and_inertia_survive_the_round_trip(kind):
+    from dataclasses import replace
+
+    from cpopt.robot import Link
+
+    arm = load_problem(PROBLEMS / f"{KINDS[kind]}.yaml").arm
+    links = (Link(1.3, 2.5, 0.4, 0.21), Link(0.9, 1.5, 0.7, 0.08), Link(0.8, 0.4, 0.35, 0.011))
+    arm = replace(arm, base=(0.3, -0.2), links=links)
+    found = urdf_arm(parse_urdf(arm_urdf(arm)))
+    assert found.kind == kind
+    assert found.base == pytest.approx((0.3, -0.2), abs=1e-15)
+    for a, b in zip(arm.links, found.links, strict=True):
+        assert [a.length, a.mass, a.d, a.I] == pytest.approx(
+            [b["length"], b["mass"], b["com"], b["inertia"]], abs=1e-15
+        )
+    assert found.sign == (1.0, 1.0, 1.0)
+    assert found.offset == pytest.approx((0.0, 0.0, 0.0), abs=1e-15)
