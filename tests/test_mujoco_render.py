@@ -76,3 +76,19 @@ def test_without_an_opengl_context_the_gif_is_skipped_with_a_reason(tmp_path, ca
     assert "no-such-backend: " in err and "Traceback" not in err
     assert (out / "rpr_transfer" / "solution.json").exists()
     assert not (out / "rpr_transfer" / "arm.gif").exists()
+
+
+def test_without_mujoco_the_engine_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == "mujoco" else real(name, *a)
+    )
+    out = tmp_path / "out"
+    code = main(["solve", str(PROBLEMS / "rpr_transfer.yaml"), "--out", str(out), "--animate",
+                 "--engine", "mujoco"])  # fmt: skip
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err == "error: --engine mujoco: MuJoCo is not installed: pip install 'cpopt[mujoco]'\n"
+    assert not out.exists()
