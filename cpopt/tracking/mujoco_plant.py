@@ -4,7 +4,8 @@ MuJoCo instead (:func:`cpopt.mujoco_arm.arm_model`, RK4, :func:`~cpopt.mujoco_ar
 steps_per_period` steps per control period).
 
 One run at a time, a Python loop over the control periods: the controller's law is the same
-CasADi function, called once per period; viscous friction is MuJoCo's joint damping and the
+CasADi function, called once per period with the CP through the function's zero-copy buffer;
+viscous friction is MuJoCo's joint damping and the
 smoothed Coulomb friction is added to the passive forces by a callback, both evaluated at every
 RK4 stage as the built-in plant does. A run stops and is judged by the built-in plant's rules
 (diverged, or the controller's progress at the end of the plan).
