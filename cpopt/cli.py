@@ -75,6 +75,14 @@ def make_parser() -> argparse.ArgumentParser:
     solve.add_argument("--plot", action="store_true", help="also write PNG figures")
     solve.add_argument("--animate", action="store_true", help="also write arm.gif")
     solve.add_argument(
+        "--engine",
+        choices=("matplotlib", "mujoco"),
+        default="matplotlib",
+        metavar="ENGINE",
+        help="what draws arm.gif: matplotlib (default) or mujoco (MuJoCo's offscreen renderer, "
+        "the tracked arm beside the plan; needs cpopt[mujoco] and EGL or OSMesa)",
+    )
+    solve.add_argument(
         "--time-limit",
         type=_seconds,
         metavar="SECONDS",
@@ -91,6 +99,13 @@ def make_parser() -> argparse.ArgumentParser:
     check = sub.add_parser("check", help="validate problem files without solving")
     check.add_argument("files", nargs="+", type=_path, metavar="FILE")
     sub.add_parser("list", help="show the bundled problems")
+    export = sub.add_parser(
+        "export-urdf", help="write a problem's arm as URDF (arm: {urdf: FILE} reads it back)"
+    )
+    export.add_argument("file", type=_path, metavar="FILE", help="a YAML problem file")
+    export.add_argument(
+        "--out", type=_path, metavar="OUT.urdf", help="write OUT.urdf (default: standard output)"
+    )
     return parser
 
 
@@ -263,9 +278,23 @@ def _write(solution, problem, outdir: Path, args) -> None:
                 o = problem.spec.optimizer
                 gamma_min = None if problem.planner == "closed_form" else o.gamma_min
                 write_figures(solution, outdir, o.limits.torque, gamma_min)
-            if args.animate:
+            if args.animate and args.engine == "mujoco":
+                _render(solution, outdir / "arm.gif")
+            elif args.animate:
                 animate(solution, outdir / "arm.gif")
         write_solution(solution, outdir)
+
+
+def _render(solution, path: Path) -> None:
+    """arm.gif from MuJoCo; where no OpenGL context can be made, a note instead (not a
+    failure: the results are written all the same)."""
+    from .mujoco_render import RenderUnavailableError
+    from .solution import Solution
+
+    try:
+        Solution.of(solution).render(path)
+    except RenderUnavailableError as err:
+        print(f"{solution.name}: arm.gif skipped: {err}", file=sys.stderr, flush=True)
 
 
 def _cmd_solve(args) -> int:
@@ -273,6 +302,12 @@ def _cmd_solve(args) -> int:
     from .isolate import solve_isolated
 
     out = Path(args.out)
+    if args.engine == "mujoco" and args.animate:
+        import importlib.util
+
+        if importlib.util.find_spec("mujoco") is None:
+            _error("--engine mujoco: MuJoCo is not installed: pip install 'cpopt[mujoco]'")
+            return EXIT_BAD_INPUT
     problems, bad_files = _problems(args.files)
     problems, bad_outputs = _outputs(problems, out)
     if bad_outputs and not problems:
@@ -293,6 +328,32 @@ def _cmd_solve(args) -> int:
         if not solution.ok and code == EXIT_OK:
             code = EXIT_FAILED
     return code
+
+
+def _cmd_export_urdf(args) -> int:
+    from .output import OutputError, atomic_write, check_directory
+
+    problem, error = _load(args.file)
+    if error:
+        _error(error)
+        return EXIT_BAD_INPUT
+    text = problem.to_urdf()
+    if args.out is None:
+        sys.stdout.write(text)
+        return EXIT_OK
+    out = Path(args.out)
+    try:
+        if out.is_dir():
+            raise OutputError(f"{out}: is a folder; expected a file name")
+        if not out.parent.is_dir():
+            raise OutputError(f"{out}: {out.parent} is not an existing folder")
+        check_directory(out.parent)
+        atomic_write(out, lambda handle: handle.write(text))
+    except OSError as err:
+        _error(f"--out {err}")
+        return EXIT_BAD_INPUT
+    print(f"wrote {out} (joints joint1, joint2, joint3)")
+    return EXIT_OK
 
 
 def _cmd_list() -> int:
@@ -347,6 +408,8 @@ def main(argv: list[str] | None = None) -> int:
                 return _cmd_check(args.files)
             if args.command == "list":
                 return _cmd_list()
+            if args.command == "export-urdf":
+                return _cmd_export_urdf(args)
             if args.command == "sweep":
                 from .sweep.run import main as sweep_main
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import results
+from .mujoco_render import ImageFile, Time, check_render_arguments
 from .problem import Problem
 from .safe_yaml import echo
 from .trajectory import Trajectory, sample_at
@@ -197,6 +198,56 @@ class Solution(results.Solution):
                 raise ValueError(f"{self.name}: the plan was not tracked (see cpopt.track)")
             return plotting.plot_tracking(self)
         return {"third_link": plotting.plot_third_link, "arm": plotting.plot_arm}[kind](self, ax)
+
+    def render(
+        self, path: ImageFile, fps: float = 25.0, tracked: bool = True, at: Time = 0.0
+    ) -> str:
+        """Write a GIF of the arm (a ``.png`` path: its frame at time ``at``) from MuJoCo's
+        offscreen renderer, as ``cpopt solve --animate --engine mujoco`` does: the planned arm,
+        and the tracked arm solid beside it (the plan translucent) when the plan was tracked.
+
+        Parameters
+        ----------
+        path : str or Path
+            Output ``.gif`` or ``.png``, in an existing folder.
+        fps : float
+            Frames per second of real time.
+        tracked : bool
+            Draw the tracked arm too, when there is one.
+        at : float
+            The time of a ``.png`` picture [s], within the plan.
+
+        Returns
+        -------
+        str
+            The OpenGL backend that rendered (``egl`` or ``osmesa``).
+
+        Raises
+        ------
+        ValueError
+            Without a plan, or for a bad argument (named).
+        cpopt.mujoco_render.RenderUnavailableError
+            Where no OpenGL context can be made (EGL, then OSMesa, were tried).
+        cpopt.mujoco_arm.MujocoMissingError
+            Without MuJoCo (``pip install 'cpopt[mujoco]'``).
+        """
+        from .mujoco_render import render
+
+        if self.plan is None:
+            raise ValueError(f"{self.name}: no plan to render (status {self.status})")
+        duration = self.plan.duration
+        path = check_render_arguments(path, fps, tracked, at, duration)
+        t = np.linspace(0.0, duration, max(2, round(duration * fps) + 1))
+        if path.suffix.lower() == ".png":
+            t = np.array([float(at)])
+        q_plan = self.sample(t).q
+        q_tracked = None
+        outcome = self.tracking
+        if tracked and outcome is not None and hasattr(outcome, "x"):
+            q_tracked = np.column_stack(
+                [np.interp(t, outcome.t[: len(outcome.x)], outcome.x[:, i]) for i in range(3)]
+            )
+        return render(self.plan.arm, q_plan, path, q_tracked, fps)
 
     def _drawn_limits(self):
         """The torque limits and gamma margin the CLI draws (none without a problem)."""

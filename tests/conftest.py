@@ -22,6 +22,8 @@ VERSIONS = (
     "PyYAML",
     "pydantic",
     "distributed",
+    "pin",
+    "mujoco",
 )
 """The dependencies whose versions a run reports (CI installs the newest allowed ones)."""
 

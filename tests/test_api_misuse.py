@@ -137,6 +137,19 @@ def _tracking_keys() -> list[Bad]:
     return [Bad(repr(c), c, tuple(c)) for c in cases]
 
 
+def _image_files(tmp: Path) -> list[Bad]:
+    """Not a picture cpopt can write."""
+    values = ["", "   ", 42, None, b"arm.gif"]
+    files = ["folder", "arm.jpg", "arm", "file/arm.gif", "missing/arm.gif"]
+    return [Bad(repr(v), v) for v in values] + [Bad(f, str(tmp / f)) for f in files]
+
+
+def _plan_times() -> list[Bad]:
+    """Not a time within the plan (it lasts a few seconds)."""
+    values = [*NOT_FINITE, -1, -1e-9, 1e6, "abc", True, None, [0.5]]
+    return [Bad(repr(v), v) for v in values]
+
+
 def families(tmp: Path, problem, solution) -> dict[str, list[Bad]]:
     """Bad values by parameter annotation (or ``name:`` for a parameter without one)."""
     source = _source(tmp)
@@ -159,6 +172,8 @@ def families(tmp: Path, problem, solution) -> dict[str, list[Bad]]:
         "name:ax": _axes(),
         "**overrides": _key_values(),
         "**tracking": _tracking_keys(),
+        "ImageFile": _image_files(tmp),
+        "Time": _plan_times(),
     }
 
 
@@ -201,9 +216,11 @@ def good_calls(problem, solution) -> dict[str, tuple]:
         "cpopt.Problem.replace": (problem.replace, {}),
         "cpopt.Problem.with_print_level": (problem.with_print_level, {"level": 5}),
         "cpopt.Problem.with_time_limit": (problem.with_time_limit, {"seconds": 10.0}),
+        "cpopt.Problem.to_urdf": (problem.to_urdf, {}),
         "cpopt.Solution.as_dict": (solution.as_dict, {}),
         "cpopt.Solution.of": (cpopt.Solution.of, {"record": solution, "problem": problem}),
         "cpopt.Solution.plot": (solution.plot, {"kind": "third_link"}),
+        "cpopt.Solution.render": (solution.render, {"path": "{tmp}/arm.gif"}),
         "cpopt.Solution.sample": (solution.sample, {"t": 0.5}),
         "cpopt.Solution.save": (solution.save, {"directory": "{tmp}/saved"}),
         "cpopt.Solution.summary": (solution.summary, {}),

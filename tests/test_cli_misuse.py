@@ -70,6 +70,11 @@ def _folders() -> list[str]:
     return ["", "   ", "{tmp}/file", "{tmp}/file/out", "{tmp}/file/a/b"]
 
 
+def _out_files() -> list[str]:
+    """Where a file to write is expected: not a name, a folder, a missing folder's file."""
+    return ["", "   ", "{tmp}/folder", "{tmp}/file/arm.urdf", "{tmp}/missing/arm.urdf"]
+
+
 def _addresses() -> list[str]:
     """Where a Dask scheduler's address is expected: malformed, then refused."""
     hosts = ["127.0.0.1", "[::1", "host name", "-host", "tcp://"]
@@ -150,6 +155,8 @@ FAMILIES = {
     "FILE": _files,
     "BASE.yaml": _files,
     "DIR": _folders,
+    "OUT.urdf": _out_files,
+    "ENGINE": lambda: ["", "opengl", "MuJoCo", "mujoco,matplotlib"],
     "ADDRESS": _addresses,
     "KEY=SPEC": _specs,
 }
@@ -165,6 +172,7 @@ GOOD_ARGS = {
     "check": {"files": str(BASE)},
     "sweep": {"base": str(BASE), "--vary": GOOD_SPEC, "--out": "{tmp}/out"},
     "list": {},
+    "export-urdf": {"file": str(BASE), "--out": "{tmp}/arm.urdf"},
 }
 """A good command line of each verb (positionals by their dest, options by their flag)."""
 
@@ -294,11 +302,11 @@ def _named(line: str, case: Case, value: str) -> None:
     key = value.partition("=")[0].strip()
     option = case.option if case.option.startswith("-") else None
     names = {n for n in (option, key if case.option == "--vary" else None) if n}
-    if case.option in ("files", "base"):
+    if case.option in ("files", "base", "file"):
         names = {"FILE", "BASE.yaml", value.strip() or "''"}
     assert any(n in line for n in names) or "argument" in line, (names, line)
     shown = value.strip() if case.option != "--vary" else value.partition("=")[2].strip()
-    if shown and case.option not in ("files", "base") and "expected a key path" not in line:
+    if shown and case.option not in ("files", "base", "file") and "expected a key path" not in line:
         # any of the listed values (a sweep refuses the first point that fails), looked for
         # after the file's path, whose folder names may hold digits
         fragments = [item.split(":")[-1] or item for item in shown.split(",")] or [shown]

@@ -33,7 +33,8 @@ def test_yaml_examples_validate(doc):
     blocks = _blocks(ROOT / doc, "yaml")
     assert blocks
     for block in blocks:
-        parse_problem(yaml.safe_load(block), doc)
+        # the document's own path: a URDF named in a block is relative to it
+        parse_problem(yaml.safe_load(block), str(ROOT / doc))
 
 
 def test_readme_commands_name_real_things():

@@ -17,9 +17,11 @@ from ..nodes import node_names, node_values, si_bounds
 from ..plan import Node
 from ..robot import Arm
 from ..safe_yaml import YamlInputError, echo, read_yaml
+from ..urdf import arm_urdf
 from .gamma import GammaSide, gamma_sides
 from .messages import check_removed_keys, describe_error
 from .schema import ProblemError, ProblemSpec, safe_name
+from .urdf_arm import expand_urdf
 from .validate import check_physics
 
 
@@ -98,6 +100,19 @@ class Problem:
         """
         return parse_problem(overridden(self.data, overrides, self.source), self.source, self.name)
 
+    def to_urdf(self) -> str:
+        """The arm as a URDF document (``cpopt export-urdf``), which ``arm: {urdf: FILE}``
+        reads back to the same arm: joints ``joint1``..``joint3`` (revolute axes ``0 -1 0`` in
+        the world's x-z plane, z up), the torque limits of ``optimizer.limits.torque`` as the
+        actuated joints' effort limits, the passive third joint without a transmission.
+
+        Returns
+        -------
+        str
+            The URDF text (SI units).
+        """
+        return arm_urdf(self.arm, tuple(self.spec.optimizer.limits.torque), name=self.name)
+
     def with_print_level(self, level: int) -> Problem:
         """A copy whose Ipopt output level is ``level`` (0 silent .. 12).
 
@@ -168,8 +183,9 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
         kind = "an empty document" if data is None else f"a {type(data).__name__}"
         raise ProblemError(source, "", f"expected a mapping with keys arm, motion, ...; got {kind}")
     check_removed_keys(data, source)
+    plain = expand_urdf(data, source)
     try:
-        spec = ProblemSpec.model_validate(data)
+        spec = ProblemSpec.model_validate(plain)
     except ValidationError as err:
         # a typo shows as an unknown key and a missing one: report the typo
         errors = sorted(err.errors(), key=lambda e: e["type"] != "extra_forbidden")

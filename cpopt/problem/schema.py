@@ -80,6 +80,16 @@ class ArmSpec(_Spec):
     links: Annotated[list[LinkSpec], Field(min_length=3, max_length=3)]
 
 
+class UrdfArmSpec(_Spec):
+    """An arm read from a URDF file: its path (relative to the problem file), the three moving
+    joints base to tip (None: the chain's own), gravity [m/s^2] and IK branch."""
+
+    urdf: Annotated[str, Field(min_length=1)]
+    joints: Triple(Annotated[str, Field(min_length=1)]) | None = None
+    gravity: Positive = 9.81
+    branch: str | None = None
+
+
 class StateSpec(_Spec):
     """A third-link state [m, deg, m/s, deg/s] with compensator values xi [m/s^2], eta [m/s^3]."""
 
@@ -286,8 +296,10 @@ class FrictionSpec(_Spec):
 
 
 class PlantSpec(_Spec):
-    """The simulated arm: link overrides, friction, torque limits [N m or N]."""
+    """The simulated arm: link overrides, friction, torque limits [N m or N], and the engine
+    that integrates it (``cpopt``, the built-in plant, or ``mujoco``)."""
 
+    engine: Literal["cpopt", "mujoco"] = "cpopt"
     links: Triple(PlantLinkSpec | None) | None = None
     friction: FrictionSpec = FrictionSpec()
     torque_limit: Pair(Positive | None) | None = None

@@ -3,6 +3,7 @@ raising :class:`ProblemError` with the key path at fault; the arm and nodes they
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import numpy as np
@@ -415,7 +416,15 @@ def plant_links(spec: ProblemSpec) -> list[Link]:
 
 
 def check_tracking(spec: ProblemSpec, source: str) -> None:
-    """The ``tracking`` block's physics: a valid plant third link, a controller for the plan."""
+    """The ``tracking`` block's physics: a valid plant third link, a controller for the plan,
+    MuJoCo installed for ``plant.engine: mujoco``."""
+    if spec.tracking.plant.engine == "mujoco" and importlib.util.find_spec("mujoco") is None:
+        raise ProblemError(
+            source,
+            "tracking.plant.engine",
+            "mujoco needs MuJoCo, which is not installed: pip install 'cpopt[mujoco]', or use "
+            "the built-in plant (engine: cpopt)",
+        )
     com3 = plant_links(spec)[2].d
     if not com3 > 0:
         raise ProblemError(

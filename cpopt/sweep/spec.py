@@ -29,6 +29,7 @@ import numpy as np
 from ..keypath import KeyPathError, check_disjoint, parse_key_path, with_values
 from ..problem import NAME, ProblemError, parse_problem, safe_name
 from ..problem.keytypes import BOOLEAN, NUMBER, WORD, KeyType, key_type
+from ..problem.urdf_arm import absolute_urdf
 from ..safe_yaml import YamlInputError, echo, parse_yaml, read_yaml
 
 MAX_POINTS = 100_000
@@ -309,7 +310,8 @@ def read_base(path: str) -> tuple[dict, str]:
         parse_problem(data, path)  # raises, with the usual message
     name = data.get("name")
     base = name if isinstance(name, str) and NAME.fullmatch(name) else None
-    return data, base or safe_name(Path(path).stem)
+    # the points are validated under other names than the file's: a URDF relative to it
+    return absolute_urdf(data, path), base or safe_name(Path(path).stem)
 
 
 def build_points(path: str, varies: list[Vary], time_limit: float | None = None) -> list[Point]:

@@ -6,6 +6,7 @@
   (:class:`~cpopt.tracking.controller.Controller`, ``torque(t, q, qd) -> tau``);
 * :mod:`~cpopt.tracking.plant`: the simulated arm (its own parameters, friction, saturation);
 * :mod:`~cpopt.tracking.simulation`: the sampled-data loop, many runs in one mapped call;
+* :mod:`~cpopt.tracking.mujoco_plant`: the same loop on MuJoCo (``tracking.plant.engine``);
 * :mod:`~cpopt.tracking.outcome`: errors, success criterion, ``tracking.csv`` rows;
 * :mod:`~cpopt.tracking.run`: :func:`track`, one run from a plan.
 """

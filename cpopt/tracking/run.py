@@ -17,6 +17,8 @@ from .timescaled import MAX_DELAY, TimeScaledTVLQR
 from .tvlqr import DEFAULT_Q, DEFAULT_QF, TVLQRController
 
 CONTROLLERS = ("tvlqr", "tvlqr_timescaled", "dfl")
+ENGINES = ("cpopt", "mujoco")
+"""Plants a run can be simulated on (``tracking.plant.engine``)."""
 DEFAULT_RATE_HZ = 1000.0
 """Default control rate [Hz]."""
 
@@ -56,6 +58,7 @@ def track(
     noise: Noise | None = None,
     rate_hz: float = DEFAULT_RATE_HZ,
     tolerance: Tolerance | None = None,
+    engine: str = "cpopt",
     **gains,
 ) -> TrackingOutcome:
     """Track a plan with a controller on a plant, sampled at ``rate_hz``.
@@ -77,6 +80,9 @@ def track(
         Control rate [Hz].
     tolerance : Tolerance, optional
         Success criterion.
+    engine : str
+        ``cpopt`` (the built-in plant: CasADi's RK4, compiled) or ``mujoco`` (MuJoCo's RK4,
+        :mod:`cpopt.tracking.mujoco_plant`; needs ``cpopt[mujoco]``).
     **gains
         ``Q``, ``R``, ``Qf``, ``poles`` or ``max_delay`` for :func:`make_controller`.
 
@@ -91,7 +97,14 @@ def track(
         )
     ref = controller.reference
     plant = plant or model_plant(ref.arm)
-    batch = simulate_batch(controller, plant.parameters()[None, :], noise, log=True)
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
+    if engine == "mujoco":
+        from .mujoco_plant import simulate_mujoco  # MuJoCo is imported only when asked for
+
+        batch = simulate_mujoco(controller, plant, noise)
+    else:
+        batch = simulate_batch(controller, plant.parameters()[None, :], noise, log=True)
     log = batch.log
     m = log["tau"].shape[0]
     diverged = None if not batch.diverged[0] else float(batch.diverged_at[0])
@@ -147,6 +160,8 @@ def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
     noise = Noise(tuple(spec.noise.position), tuple(spec.noise.velocity), spec.noise.seed)
     gains = {"Q": spec.Q, "R": spec.R, "Qf": spec.Qf, "poles": spec.poles}
     try:
-        return track(plan, spec.controller, plant, noise, spec.rate_hz, **gains)
+        return track(
+            plan, spec.controller, plant, noise, spec.rate_hz, engine=spec.plant.engine, **gains
+        )
     except SingularTrackingError as err:
         return TrackingRefused(spec.controller, str(err))

@@ -339,7 +339,7 @@ class _Chunk:
         k = np.arange(k0, k0 + length + 1)
         c_all = np.concatenate([c[:, :, None], c_next], axis=2)  # (2, A, length + 1)
         s = controller.progress(k, c_all)
-        cp_err = np.linalg.norm(cp - _cp_at(ref, s[:, :-1]), axis=0)
+        cp_err = np.linalg.norm(cp - plan_cp_at(ref, s[:, :-1]), axis=0)
         bad = _first_bad(X_next, cp_err)
         done = _first(s[:, 1:] >= ref.steps - 1e-9)
         stop = np.where(bad >= 0, bad, done)
@@ -368,7 +368,7 @@ def _batch(ref, t: np.ndarray, X: np.ndarray, totals: _Totals, log) -> Batch:
     )
 
 
-def _cp_at(ref, s: np.ndarray) -> np.ndarray:
+def plan_cp_at(ref, s: np.ndarray) -> np.ndarray:
     """The plan's CP (2, ...) at fractional instants s (...) of its grid, interpolated linearly
     (exact at whole instants)."""
     s = np.clip(s, 0, ref.steps)
