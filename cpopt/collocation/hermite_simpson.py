@@ -296,6 +296,13 @@ def _plan(problem: Problem, knots, index, states, torques) -> JointPlan:
     t = (knots[:-1, None] + np.diff(knots)[:, None] * fraction).ravel()
     fine_x = np.vstack([inner, states[-1]])
     fine_tau = np.vstack([np.repeat(torques, SUBSTEPS, axis=0), torques[-1]])
+    return _joint_plan(problem, knots, index, states, torques, (t, fine_x, fine_tau))
+
+
+def _joint_plan(problem: Problem, knots, index, states, torques, fine) -> JointPlan:
+    """The JointPlan of knot ``states``, interval ``torques`` and ``fine`` samples (times
+    without the last knot, states and torques with it)."""
+    t, fine_x, fine_tau = fine
     reached = pose_states(problem.arm, states)
     nodes = [Node(float(knots[k]), *reached[k], 0.0, 0.0) for k in index]
     return JointPlan(
@@ -329,23 +336,8 @@ def _linear_plan(problem: Problem, knots, index, states, values) -> JointPlan:
     ).reshape(n * SUBSTEPS, 6)
     fine_tau = ((1 - s) * start[:, None] + s * end[:, None]).reshape(n * SUBSTEPS, 2)
     t = (knots[:-1, None] + np.diff(knots)[:, None] * s[..., 0]).ravel()
-    reached = pose_states(problem.arm, states)
-    nodes = [Node(float(knots[k]), *reached[k], 0.0, 0.0) for k in index]
-    return JointPlan(
-        arm=problem.arm,
-        nodes=tuple(nodes),
-        knots=knots,
-        q=states[:, :3],
-        qd=states[:, 3:],
-        tau=0.5 * (start + end),
-        fine={
-            "t": np.r_[t, knots[-1]],
-            "q": np.vstack([fine_x[:, :3], states[-1, :3]]),
-            "qd": np.vstack([fine_x[:, 3:], states[-1, 3:]]),
-            "tau": np.vstack([fine_tau, end[-1]]),
-        },
-        sigma=0,
-    )
+    fine = (t, np.vstack([fine_x, states[-1]]), np.vstack([fine_tau, end[-1]]))
+    return _joint_plan(problem, knots, index, states, 0.5 * (start + end), fine)
 
 
 __all__ = ["SUBSTEPS", "SeedUnsupportedError", "Torques", "hermite_simpson"]
