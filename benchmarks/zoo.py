@@ -166,7 +166,7 @@ def _pattern(solution) -> str:
 def _stages(search: dict, stage_times: dict) -> str:
     """Where a solve's time went [s]: the search's stages, then sampling and verifying."""
     parts = [f"seed {search['seed']['time_s']:.2f}"] if "seed" in search else []
-    for name in ("bound", "flat", "near", "polish", "greedy"):
+    for name in ("bound", "patterned", "flat", "near", "polish", "greedy"):
         if search.get(name, {}).get("patterns"):
             parts.append(f"{name} {search[name]['time_s']:.2f}")
     parts += [f"{k} {stage_times[k]:.2f}" for k in ("sample", "verify") if k in stage_times]
