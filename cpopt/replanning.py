@@ -1,0 +1,114 @@
+"""``cpopt.replan``: the remaining motion of a solved plan from a measured state.
+
+The public face of :mod:`cpopt.flatopt.replan` (what the ``flat_mpc`` controller calls in its
+loop): it checks its arguments and names what is wrong, as the rest of the API does.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+
+from .flatopt.replan import Multipliers, Replan
+from .flatopt.replan import replan as solve_remaining
+from .plan import CPPlan
+from .safe_yaml import echo
+from .solution import Solution
+
+
+def _vector(value, name: str) -> np.ndarray:
+    """Three finite numbers, or a ValueError naming the argument."""
+    try:
+        out = np.asarray(value, float).ravel()
+    except (TypeError, ValueError):
+        out = np.zeros(0)
+    if out.shape != (3,) or not np.all(np.isfinite(out)):
+        raise ValueError(f"{name}: expected 3 finite numbers (one per joint), got {echo(value)}")
+    return out
+
+
+def _checked_time(t, plan: CPPlan) -> float:
+    real = isinstance(t, numbers.Real) and not isinstance(t, bool)
+    if not real or not math.isfinite(t) or not plan.t0 <= t <= plan.t0 + plan.duration:
+        raise ValueError(
+            f"t: expected a time [s] within the plan, {plan.t0:g} to "
+            f"{plan.t0 + plan.duration:g}, got {echo(t)}"
+        )
+    return float(t)
+
+
+def replan(
+    solution: Solution,
+    t: float,
+    q,
+    qd,
+    *,
+    plan: CPPlan | None = None,
+    deadline_s: float = math.inf,
+    warm: Multipliers | None = None,
+    free_compensator: bool = True,
+) -> Replan:
+    """Re-plan a solved flat plan from the measured joint state (q, qd) at time t.
+
+    The remaining motion to the plan's goal at T (a shrinking horizon) keeps the plan's
+    pattern of signs of gamma and its switch times still ahead, chooses the compensator's xi
+    and eta at t (unbounded, see :mod:`cpopt.flatopt.remaining_motion`), and has the problem's
+    objective and limits;
+    it is warm started from the current plan and solved by Ipopt within ``deadline_s``.
+
+    Parameters
+    ----------
+    solution : Solution
+        A solution of :func:`cpopt.solve` with a flat plan (``planner: optimize``,
+        B-spline curves) and its problem.
+    t : float
+        The re-plan instant [s], within the plan.
+    q, qd : array_like
+        Measured joint positions and velocities (3,) [rad or m, rad/s or m/s].
+    plan : CPPlan, optional
+        The current plan when it is a re-plan of the solution's (default: the solution's).
+    deadline_s : float
+        Wall time the re-plan may take [s] (status ``time_limit`` or ``late`` past it).
+    warm : Multipliers, optional
+        The previous re-plan's :attr:`~cpopt.flatopt.replan.Replan.multipliers`.
+    free_compensator : bool
+        False holds xi and eta at the plan's values at t.
+
+    Returns
+    -------
+    Replan
+        ``.status``, ``.plan`` (the new plan, or the previous one when the re-plan did not
+        solve in time: ``.kept_previous``), ``.iterate``, ``.iterations``, ``.time_s``.
+
+    Raises
+    ------
+    ValueError
+        For a solution without a flat plan or its problem, a path-timing plan, a time outside
+        the plan, or joint states that are not 3 finite numbers.
+    """
+    if not isinstance(solution, Solution) or solution.problem is None:
+        raise ValueError(f"solution: expected a Solution of cpopt.solve, got {echo(solution)}")
+    current = plan if plan is not None else solution.plan
+    if not isinstance(current, CPPlan) or current.planner not in ("optimize",):
+        raise ValueError(
+            f"{solution.name}: re-planning needs a flat plan of planner: optimize "
+            f"(status {solution.status}, planner {solution.planner})"
+        )
+    t = _checked_time(t, current)
+    if not (isinstance(deadline_s, numbers.Real) and deadline_s > 0):
+        raise ValueError(f"deadline_s: expected seconds > 0, got {echo(deadline_s)}")
+    return solve_remaining(
+        solution.problem,
+        current,
+        t,
+        _vector(q, "q"),
+        _vector(qd, "qd"),
+        deadline_s=float(deadline_s),
+        warm=warm,
+        free_compensator=free_compensator,
+    )
+
+
+__all__ = ["replan"]
