@@ -26,7 +26,7 @@ from ..solver import run_nlp
 from ..trajectory import Trajectory, sample
 from .remaining_motion import Remaining, remaining, shifted
 from .transcribe import build, initial_grids
-from .warm_start import seeded_guess
+from .warm_start import initial_guess, seeded_guess
 
 SOLVER_SETTINGS = {"tol": 1e-6, "mu_strategy": "monotone", "print_level": 0}
 """Ipopt's settings for a re-plan (``optimizer.solver`` keys): a re-plan starts next to its
@@ -65,6 +65,8 @@ class Replan:
         Wall time of the re-plan, warm start and unpacking included [s].
     multipliers : Multipliers or None
         The newest solved re-plan's multipliers, for the next re-plan's ``warm``.
+    message : str
+        The solver's own word (Ipopt's return status).
     """
 
     status: str
@@ -76,6 +78,7 @@ class Replan:
     iterations: int = 0
     time_s: float = 0.0
     multipliers: Multipliers | None = None
+    message: str = ""
 
     @property
     def solved(self) -> bool:
@@ -120,29 +123,52 @@ def structure(rest: Remaining) -> tuple:
     return (len(p.nodes), rest.signs, rest.switches, tuple(sorted(p.free)))
 
 
-def with_replan_settings(problem: Problem) -> Problem:
-    """The problem with the re-plan's Ipopt settings (:data:`SOLVER_SETTINGS`)."""
+def with_replan_settings(problem: Problem, torque_limit=None) -> Problem:
+    """The problem with the re-plan's Ipopt settings (:data:`SOLVER_SETTINGS`) and, if given,
+    the motors' ``torque_limit`` (2,) [N m or N] as its torque limits (a joint's None keeps
+    the problem's)."""
     from dataclasses import replace
 
+    from ..limits import arm_limits
+
     o = problem.spec.optimizer
-    solver = o.solver.model_copy(update=SOLVER_SETTINGS)
-    spec = problem.spec.model_copy(update={"optimizer": o.model_copy(update={"solver": solver})})
-    return replace(problem, spec=spec)
+    update = {"solver": o.solver.model_copy(update=SOLVER_SETTINGS)}
+    if torque_limit is not None:
+        torque = [
+            a if a is not None else b for a, b in zip(torque_limit, o.limits.torque, strict=True)
+        ]
+        update["limits"] = o.limits.model_copy(update={"torque": torque})
+    optimizer = o.model_copy(update=update)
+    spec = problem.spec.model_copy(update={"optimizer": optimizer})
+    return replace(problem, spec=spec, limits=arm_limits(optimizer.limits, problem.arm))
 
 
-def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, warm):
+def start_vector(nlp, problem: Problem, signs, seed: Trajectory, p: np.ndarray) -> np.ndarray:
+    """The initial vector: the current plan refitted (:func:`seeded_guess`), or the closed
+    form through the nodes where the objective is not finite there (measured: a re-plan of a
+    re-plan of transfer_min_torque on the model, whose start's free fourth CP derivative
+    had grown large, fitted a sample where the torque is NaN, and Ipopt stopped at once)."""
+    x0 = seeded_guess(nlp, problem, signs, seed)
+    if np.isfinite(float(nlp.solver.get_function("nlp_f")(x0, p))):
+        return x0
+    return initial_guess(nlp, problem, signs)
+
+
+def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, warm, motors):
     """(run, new plan in the plan's clock, multipliers) of one Ipopt solve of the remaining
     motion; ``warm`` (:class:`Multipliers` or None) the previous re-plan's multipliers, used
-    when its structure is this one's (Ipopt then starts from the primal-dual point)."""
+    when its structure is this one's (Ipopt then starts from the primal-dual point);
+    ``motors`` the torque limits to plan within (None: the problem's)."""
     from . import plan_from
 
-    problem, signs, switches = with_replan_settings(rest.problem), rest.signs, rest.switches
+    problem = with_replan_settings(rest.problem, motors)
+    signs, switches = rest.signs, rest.switches
     key = structure(rest)
     resume = warm is not None and warm.structure == key
     nlp = build(problem, signs, initial_grids(problem), warm=True, resume=resume)
     p = nlp.parameters(problem.values)
     lbx, ubx = _bounds(nlp, problem)
-    x0 = seeded_guess(nlp, problem, signs, shifted_seed(seed, rest.t0))
+    x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
     arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
     if resume:
         arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
@@ -166,6 +192,7 @@ def replan(
     iterations: int = REPLAN_ITERATIONS,
     warm: Multipliers | None = None,
     free_compensator: bool = True,
+    torque_limit=None,
 ) -> Replan:
     """Re-plan the remaining motion of ``plan`` from the measured joint state at time t.
 
@@ -191,6 +218,8 @@ def replan(
         structure starts from them.
     free_compensator : bool
         xi and eta at t free (the default) or held at the plan's.
+    torque_limit : sequence of (float or None), optional
+        The motors' torque limits [N m or N] the re-plan keeps (None: the problem's).
 
     Returns
     -------
@@ -204,7 +233,7 @@ def replan(
     if rest is None:
         return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
     seed = sample(plan) if seed is None else seed
-    run, new, multipliers = _solve(rest, seed, deadline, iterations, warm)
+    run, new, multipliers = _solve(rest, seed, deadline, iterations, warm, torque_limit)
     elapsed = time.perf_counter() - tic
     status = run.status
     if status == "solved" and (new is None or elapsed > deadline_s):
@@ -220,6 +249,7 @@ def replan(
         iterations=run.iterations,
         time_s=elapsed,
         multipliers=multipliers,
+        message=run.return_status,
     )
 
 
