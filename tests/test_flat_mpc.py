@@ -1,6 +1,9 @@
 """The flat_mpc controller: TVLQR around a plan re-solved from the measured state."""
 
 import json
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -94,3 +97,31 @@ def test_bad_flat_mpc_settings_are_refused_by_key_path(change, path, words, tmp_
     file.write_text(yaml.safe_dump(data))
     assert main(["check", str(file)]) == 2
     assert path in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_benchmark_prints_replan_and_score_lines():
+    """Re-plans that all miss their deadline leave flat_mpc tvlqr's figures, plant by plant."""
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "robustness.py"),
+         "--plans", "transfer_min_torque", "--controllers", "tvlqr,flat_mpc", "--trials", "2",
+         "--steps", "2", "--score-values", "2", "--headroom", "0", "--replan-deadline", "1e-6"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.splitlines()
+    robust = [ln.split(" ", 3)[3] for ln in lines if ln.startswith("ROBUST ")]
+    assert len(robust) == 2 and robust[0] == robust[1]
+    (replan,) = [ln for ln in lines if ln.startswith("REPLAN ")]
+    assert re.fullmatch(
+        r"REPLAN transfer_min_torque median_ms=\d+\.\d p99_ms=\d+\.\d misses=1\.000", replan
+    )
+    scores = [ln.split(" ", 3) for ln in lines if ln.startswith("SCORE ")]
+    assert [s[2] for s in scores] == ["tvlqr", "flat_mpc"] and scores[0][3] == scores[1][3]
+    assert re.fullmatch(
+        r"model=[01]\.\d{3} velocity_noise=[01]\.\d{3} torque_noise=nan gain=nan delay=nan "
+        r"overall=[01]\.\d{3}",
+        scores[0][3],
+    )
