@@ -86,7 +86,7 @@ class Replan:
         return self.status == "solved"
 
 
-def _bounds(nlp, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+def variable_bounds(nlp, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of the whole decision vector: the core's, the lifted samples unbounded."""
     lo, hi = nlp.layout.bounds(problem.free)
     n_lifted = nlp.solver.size_in(0)[0] - nlp.layout.size
@@ -167,7 +167,7 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, 
     resume = warm is not None and warm.structure == key
     nlp = build(problem, signs, initial_grids(problem), warm=True, resume=resume)
     p = nlp.parameters(problem.values)
-    lbx, ubx = _bounds(nlp, problem)
+    lbx, ubx = variable_bounds(nlp, problem)
     x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
     arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
     if resume:
@@ -253,4 +253,14 @@ def replan(
     )
 
 
-__all__ = ["REPLAN_ITERATIONS", "Multipliers", "Replan", "replan", "shifted_seed", "structure"]
+__all__ = [
+    "REPLAN_ITERATIONS",
+    "Multipliers",
+    "Replan",
+    "replan",
+    "shifted_seed",
+    "start_vector",
+    "structure",
+    "variable_bounds",
+    "with_replan_settings",
+]
