@@ -14,8 +14,13 @@ import numpy as np
 from .flatopt.replan import Multipliers, Replan
 from .flatopt.replan import replan as solve_remaining
 from .plan import CPPlan
-from .safe_yaml import echo
+from .safe_yaml import echo as echo_value
 from .solution import Solution
+
+
+def echo(value) -> str:
+    """A value as an error message shows it, on one line (an array's repr has several)."""
+    return " ".join(echo_value(value).split())
 
 
 def _vector(value, name: str) -> np.ndarray:
@@ -30,6 +35,7 @@ def _vector(value, name: str) -> np.ndarray:
 
 
 def _checked_time(t, plan: CPPlan) -> float:
+    """t as seconds within the plan, or a ValueError naming it."""
     real = isinstance(t, numbers.Real) and not isinstance(t, bool)
     if not real or not math.isfinite(t) or not plan.t0 <= t <= plan.t0 + plan.duration:
         raise ValueError(
@@ -41,12 +47,12 @@ def _checked_time(t, plan: CPPlan) -> float:
 
 def replan(
     solution: Solution,
-    t: float,
+    t,
     q,
     qd,
     *,
     plan: CPPlan | None = None,
-    deadline_s: float = math.inf,
+    deadline_s: float | None = None,
     warm: Multipliers | None = None,
     free_compensator: bool = True,
 ) -> Replan:
@@ -69,8 +75,9 @@ def replan(
         Measured joint positions and velocities (3,) [rad or m, rad/s or m/s].
     plan : CPPlan, optional
         The current plan when it is a re-plan of the solution's (default: the solution's).
-    deadline_s : float
-        Wall time the re-plan may take [s] (status ``time_limit`` or ``late`` past it).
+    deadline_s : float, optional
+        Wall time the re-plan may take [s] (status ``time_limit`` or ``late`` past it; None:
+        no deadline).
     warm : Multipliers, optional
         The previous re-plan's :attr:`~cpopt.flatopt.replan.Replan.multipliers`.
     free_compensator : bool
@@ -85,30 +92,45 @@ def replan(
     Raises
     ------
     ValueError
-        For a solution without a flat plan or its problem, a path-timing plan, a time outside
-        the plan, or joint states that are not 3 finite numbers.
+        For an argument of the wrong kind (naming it), a solution without a flat plan or its
+        problem, a path-timing plan, or a time outside the plan.
     """
     if not isinstance(solution, Solution) or solution.problem is None:
         raise ValueError(f"solution: expected a Solution of cpopt.solve, got {echo(solution)}")
+    if plan is not None and not isinstance(plan, CPPlan):
+        raise ValueError(f"plan: expected a CPPlan (a re-plan's .plan), got {echo(plan)}")
     current = plan if plan is not None else solution.plan
-    if not isinstance(current, CPPlan) or current.planner not in ("optimize",):
+    arguments = (_checked_time(t, current), _vector(q, "q"), _vector(qd, "qd"))
+    _check_options(deadline_s, warm, free_compensator)
+    if current.planner != "optimize" or solution.problem.planner != "optimize":
         raise ValueError(
             f"{solution.name}: re-planning needs a flat plan of planner: optimize "
             f"(status {solution.status}, planner {solution.planner})"
         )
-    t = _checked_time(t, current)
-    if not (isinstance(deadline_s, numbers.Real) and deadline_s > 0):
-        raise ValueError(f"deadline_s: expected seconds > 0, got {echo(deadline_s)}")
     return solve_remaining(
         solution.problem,
         current,
-        t,
-        _vector(q, "q"),
-        _vector(qd, "qd"),
-        deadline_s=float(deadline_s),
+        *arguments,
+        deadline_s=math.inf if deadline_s is None else float(deadline_s),
         warm=warm,
         free_compensator=free_compensator,
     )
+
+
+def _check_options(deadline_s, warm, free_compensator) -> None:
+    """Refuse a deadline that is not seconds > 0, a ``warm`` that is not a re-plan's
+    multipliers, a ``free_compensator`` that is not True or False."""
+    real = isinstance(deadline_s, numbers.Real) and not isinstance(deadline_s, bool)
+    if deadline_s is not None and not (real and math.isfinite(deadline_s) and deadline_s > 0):
+        raise ValueError(
+            f"deadline_s: expected a finite number of seconds > 0, got {echo(deadline_s)}"
+        )
+    if warm is not None and not isinstance(warm, Multipliers):
+        raise ValueError(
+            f"warm: expected a re-plan's multipliers (Replan.multipliers), got {echo(warm)}"
+        )
+    if not isinstance(free_compensator, bool):
+        raise ValueError(f"free_compensator: expected True or False, got {echo(free_compensator)}")
 
 
 __all__ = ["replan"]

@@ -91,7 +91,7 @@ def test_near_the_goal_the_plan_holds(transfer):
         ({"t": 1.5}, "t: expected a time [s] within the plan, 0 to 1, got 1.5"),
         ({"q": [0.0, 1.0]}, "q: expected 3 finite numbers"),
         ({"qd": [0.0, np.nan, 1.0]}, "qd: expected 3 finite numbers"),
-        ({"deadline_s": 0}, "deadline_s: expected seconds > 0, got 0"),
+        ({"deadline_s": 0}, "deadline_s: expected a finite number of seconds > 0, got 0"),
     ],
 )
 def test_bad_arguments_are_refused_by_name(transfer, change, words):
