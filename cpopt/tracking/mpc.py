@@ -3,13 +3,14 @@
 Every ``period`` [s] the loop measures (q, qd) (with the plant's measurement noise) and
 re-plans the remaining motion to the goal at T (:func:`cpopt.flatopt.replan.replan`: the
 flat NLP from the measured state, xi and eta the newest plan's unless
-:attr:`MPCSettings.free_compensator`, torques within :attr:`MPCSettings.motor_fraction` of the
-motors, warm started from the newest plan and its multipliers). The computation takes time: the new plan takes effect ``delay`` [s] after the
-state it was solved from (one period by default); until then the previous plan's TVLQR runs
-on. A re-plan that does not solve, or takes longer than its ``deadline`` of wall time (the
-delay by default: a real loop has no more), keeps the previous plan. Between re-plans the
-law is TVLQR (:class:`~cpopt.tracking.tvlqr.TVLQRController`) around the newest plan, its
-Riccati gains designed on the new plan's remainder with the first plan's torque weights.
+:attr:`MPCSettings.free_compensator`, torques within :attr:`MPCSettings.motor_fraction` of
+the motors, warm started from the newest plan and its multipliers). The computation takes
+time: the new plan takes effect ``delay`` [s] after the state it was solved from (one period
+by default); until then the previous plan's TVLQR runs on. A re-plan that does not solve, or
+takes longer than its ``deadline`` of wall time (the delay by default: a real loop has no
+more), keeps the previous plan. Between re-plans the law is TVLQR
+(:class:`~cpopt.tracking.tvlqr.TVLQRController`) around the newest plan, its Riccati gains
+designed on the new plan's remainder with the first plan's torque weights.
 
 The simulation is the sampled-data loop of :mod:`cpopt.tracking.simulation` (the same period
 function: noise, law, saturation, RK4 plant), run a stretch at a time between re-plans,
