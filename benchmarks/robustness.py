@@ -21,6 +21,15 @@ the plan's peak torque where it has none; ``tvlqr_timescaled`` fits its torques 
 limits. A run is judged when the controller's progress reaches the end of the plan: at T, or
 up to half the plan's duration later for ``tvlqr_timescaled``.
 
+``flat_mpc`` (TVLQR around the plan re-solved from the measured state every 20 ms,
+:mod:`cpopt.tracking.mpc`) runs on the same plants one run at a time, its re-plans within
+``--replan-deadline`` of wall time (default: the 20 ms period), and prints
+``REPLAN <plan> median_ms=<ms> p99_ms=<ms> misses=<fraction>`` over all its re-plans (misses:
+over the deadline or not solved); it has no mass margins. Every controller also gets a
+RealAIGym-style score (:mod:`cpopt.tracking.scores`, ``--score-values`` per category, 0 for
+none): ``SCORE <plan> <controller> model=... velocity_noise=... torque_noise=... gain=...
+delay=... overall=...`` (torque noise, gain and delay are NaN: the plant does not model them).
+
 A run succeeds when at T the CP is within 2 cm and theta within 5 deg of the goal, every joint
 velocity within 0.25 rad/s (m/s) of the goal's, and it never diverged
 (:class:`cpopt.tracking.Tolerance`). It prints a table and one line per plan and controller,
@@ -75,7 +84,7 @@ os.environ.update(dict.fromkeys(THREAD_VARIABLES, "1"))
 
 import numpy as np
 
-CONTROLLERS = ("tvlqr", "tvlqr_timescaled", "dfl")
+CONTROLLERS = ("tvlqr", "tvlqr_timescaled", "dfl", "flat_mpc")
 QUICK_PLANS = "paper_transfer"
 
 
@@ -96,6 +105,8 @@ class Row:
     delay: tuple = (0.0, 0.0)
     seconds: float = 0.0
     note: str = ""
+    replan: dict | None = None
+    score: dict | None = None
 
 
 def measure(problem, plan, name: str, args) -> Row:
@@ -112,6 +123,8 @@ def measure(problem, plan, name: str, args) -> Row:
     )
     from cpopt.tracking.run import make_controller
 
+    if name == "flat_mpc":
+        return measure_mpc(problem, plan, args)
     tic = time.perf_counter()
     row = Row(problem.name, plan.planner, name)
     ref = reference(plan, args.rate)
@@ -131,10 +144,52 @@ def measure(problem, plan, name: str, args) -> Row:
     row.p95_cp = float(np.percentile(mc.final_cp_error, 95))
     if np.isfinite(mc.delay).any():
         row.delay = (float(np.nanmedian(mc.delay)), float(np.nanmax(mc.delay)))
+    frictionless = Plant(plant.arm, torque_limit=plant.torque_limit).parameters()
     if not args.quick:
         row.mass_bench = mass_margin(controller, nominal, noise)
-        frictionless = Plant(plant.arm, torque_limit=plant.torque_limit).parameters()
         row.mass_model = mass_margin(controller, frictionless, Noise())
+    if args.score_values:
+        from cpopt.tracking.scores import batch_judge, scores
+
+        row.score = scores(batch_judge(controller), frictionless, args.score_values)
+    row.seconds = time.perf_counter() - tic
+    return row
+
+
+def measure_mpc(problem, plan, args) -> Row:
+    """flat_mpc on the same plants as the other controllers (one run at a time), its re-plans'
+    wall times and misses; no mass margins (each is some fifty runs of the loop)."""
+    from cpopt.tracking import Noise, Plant
+    from cpopt.tracking.mpc import FlatMPC, MPCSettings, replan_figures
+    from cpopt.tracking.robustness import (
+        benchmark_plant,
+        monte_carlo_parameters,
+        sweep_parameters,
+    )
+    from cpopt.tracking.scores import mpc_judge, mpc_trials, scores
+
+    tic = time.perf_counter()
+    row = Row(problem.name, plan.planner, "flat_mpc")
+    if problem.planner != "optimize" or problem.spec.optimizer.curve == "path_timing":
+        row.note = "refused: flat_mpc re-plans B-spline plans of planner: optimize"
+        return row
+    settings = MPCSettings(deadline=args.replan_deadline)
+    mpc = FlatMPC(problem, plan, args.rate, settings)
+    plant, noise = benchmark_plant(mpc.reference, problem.spec.optimizer.limits.torque)
+    mpc.torque_limit = plant.torque_limit
+    perfect, runs = mpc_trials(mpc, Plant(plan.arm).parameters(), Noise())
+    row.perfect = float(perfect.max_cp_error[0])
+    nominal = plant.parameters()
+    sweep, more = mpc_trials(mpc, sweep_parameters(nominal, 0.2, args.steps), noise)
+    mc_rows = monte_carlo_parameters(nominal, args.trials, 0.1, args.seed)
+    mc, mc_runs = mpc_trials(mpc, mc_rows, Noise(noise.position, noise.velocity, args.seed))
+    row.sweep, row.monte_carlo = sweep.rate, mc.rate
+    row.median_cp = float(np.median(mc.final_cp_error))
+    row.p95_cp = float(np.percentile(mc.final_cp_error, 95))
+    row.replan = replan_figures(runs + more + mc_runs)
+    if args.score_values:
+        frictionless = Plant(plant.arm, torque_limit=plant.torque_limit).parameters()
+        row.score = scores(mpc_judge(mpc), frictionless, args.score_values)
     row.seconds = time.perf_counter() - tic
     return row
 
@@ -403,6 +458,17 @@ def main(argv=None) -> int:
         default=",".join(CONTROLLERS),
         help=f"controllers to run, NAME,... (default: {','.join(CONTROLLERS)})",
     )
+    parser.add_argument(
+        "--score-values",
+        type=int,
+        default=21,
+        help="values per category of the SCORE lines (21; 0: no scores)",
+    )
+    parser.add_argument(
+        "--replan-deadline",
+        type=float,
+        help="flat_mpc: wall time a re-plan may take [s] (default: its 20 ms period)",
+    )
     args = parser.parse_args(argv)
     args.controllers = tuple(args.controllers.split(","))
     unknown = set(args.controllers) - set(CONTROLLERS)
@@ -412,6 +478,7 @@ def main(argv=None) -> int:
         parser.error(f"--headroom {args.headroom:g}: give a fraction 0 <= h < 1")
     if args.quick:
         args.plans, args.trials, args.steps = args.plans or QUICK_PLANS, 5, 3
+        args.score_values = min(args.score_values, 3)
     if args.workers is not None and (args.workers < 1 or args.scheduler):
         parser.error("--workers N (N >= 1) starts a local cluster; --scheduler uses a running one")
     start = time.perf_counter()
@@ -437,7 +504,21 @@ def main(argv=None) -> int:
         f"{args.steps}-step sweeps; {time.perf_counter() - start:.0f} s in all"
     )
     for r in rows:
+        if r.controller == "flat_mpc" and r.note:  # a plan it cannot re-plan: the table says
+            continue
         print(f"ROBUST {r.plan} {r.controller} sweep={r.sweep:.3f} monte_carlo={r.monte_carlo:.3f}")
+    for r in rows:
+        if r.replan is not None:
+            f = r.replan
+            print(
+                f"REPLAN {r.plan} median_ms={f['median_ms']:.1f} p99_ms={f['p99_ms']:.1f} "
+                f"misses={f['misses']:.3f}"
+            )
+    from cpopt.tracking.scores import score_line
+
+    for r in rows:
+        if r.score is not None:
+            print(score_line(r.plan, r.controller, r.score))
     for r in headroom:
         print(headroom_line(r))
     return 0

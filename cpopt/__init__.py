@@ -12,7 +12,9 @@ The Python API (see the README's Python section)::
   file and the key path);
 * :func:`solve` → :class:`Solution` (``.status``, ``.metrics``, ``.free_values``,
   ``.sample(t)``, ``.to_dict()``, ``.save(dir)``, ``.plot(kind)``);
-* :func:`track` → :class:`~cpopt.tracking.TrackingOutcome`, as a problem's ``tracking`` block.
+* :func:`track` → :class:`~cpopt.tracking.TrackingOutcome`, as a problem's ``tracking`` block;
+* :func:`replan` → :class:`~cpopt.flatopt.replan.Replan`: the remaining motion of a flat plan
+  from a measured state (what the ``flat_mpc`` controller does in its loop).
 
 The names are imported on first use, so ``import cpopt`` (and ``cpopt --version``) stays fast.
 """
@@ -27,13 +29,23 @@ _LAZY = {
     "load": "cpopt.api",
     "solve": "cpopt.api",
     "track": "cpopt.api",
+    "replan": "cpopt.replanning",
     "Problem": "cpopt.problem",
     "ProblemError": "cpopt.problem",
     "Solution": "cpopt.solution",
 }
 """Public name -> the module that defines it, imported when the name is first used."""
 
-__all__ = ["Problem", "ProblemError", "Solution", "__version__", "load", "solve", "track"]
+__all__ = [
+    "Problem",
+    "ProblemError",
+    "Solution",
+    "__version__",
+    "load",
+    "replan",
+    "solve",
+    "track",
+]
 
 
 def __getattr__(name: str):

@@ -174,10 +174,12 @@ def track(
         Default: the model arm.
     controller : str
         ``tvlqr``, ``tvlqr_timescaled`` (slows the reference to fit the plant's torque limits;
-        the run may end after T) or ``dfl``.
+        the run may end after T), ``dfl``, or ``flat_mpc`` (TVLQR around a plan re-solved
+        from the measured state every ``replan_period``, a flat plan of ``planner:
+        optimize`` only).
     **tracking
-        The block's other keys: ``rate_hz``, ``Q``, ``R``, ``Qf``, ``poles``, ``noise``
-        (see docs/problems.md).
+        The block's other keys: ``rate_hz``, ``Q``, ``R``, ``Qf``, ``poles``, ``noise``,
+        ``replan_period``, ``replan_delay``, ``replan_deadline`` (see docs/problems.md).
 
     Returns
     -------

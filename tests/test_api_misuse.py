@@ -134,6 +134,7 @@ def _tracking_keys() -> list[Bad]:
     cases = [{"rate_hz": v} for v in (*NOT_FINITE, *NOT_POSITIVE, "fast", None)]
     cases += [{"Q": "abc"}, {"Q": [1.0, 2.0]}, {"R": [-1.0, 1.0]}, {"nope": 1}]
     cases += [{"noise": {"seed": -1}}, {"poles": [1.0, 1.0, 1.0, 1.0]}]
+    cases += [{"replan_period": 0}, {"replan_delay": -1.0}, {"replan_deadline": "soon"}]
     return [Bad(repr(c), c, tuple(c)) for c in cases]
 
 
@@ -148,6 +149,21 @@ def _plan_times() -> list[Bad]:
     """Not a time within the plan (it lasts a few seconds)."""
     values = [*NOT_FINITE, -1, -1e-9, 1e6, "abc", True, None, [0.5]]
     return [Bad(repr(v), v) for v in values]
+
+
+def _joint_states() -> list[Bad]:
+    """Not 3 finite numbers (one per joint)."""
+    values = ["abc", None, [0.0, 1.0], [0.0, math.nan, 0.0], [math.inf, 0, 0], np.zeros((2, 3)),
+              True, {}, object(), []]  # fmt: skip
+    return [Bad(repr(v)[:30], v) for v in values]
+
+
+def _plans(problem) -> list[Bad]:
+    return [Bad(repr(v)[:30], v) for v in ("plan.json", 3, {}, problem)]
+
+
+def _multipliers() -> list[Bad]:
+    return [Bad(repr(v)[:30], v) for v in ("warm", 3, {}, [1.0], object())]
 
 
 def families(tmp: Path, problem, solution) -> dict[str, list[Bad]]:
@@ -174,6 +190,10 @@ def families(tmp: Path, problem, solution) -> dict[str, list[Bad]]:
         "**tracking": _tracking_keys(),
         "ImageFile": _image_files(tmp),
         "Time": _plan_times(),
+        "name:q": _joint_states(),
+        "name:qd": _joint_states(),
+        "CPPlan | None": _plans(problem),
+        "Multipliers | None": _multipliers(),
     }
 
 
@@ -213,6 +233,10 @@ def good_calls(problem, solution) -> dict[str, tuple]:
         "cpopt.load": (cpopt.load, {"path_or_dict": str(CLOSED_FORM)}),
         "cpopt.solve": (cpopt.solve, {"problem_or_path": problem}),
         "cpopt.track": (cpopt.track, {"solution": solution}),
+        "cpopt.replan": (
+            cpopt.replan,
+            {"solution": solution, "t": 0.5, "q": [0.0, 0.0, 0.0], "qd": [0.0, 0.0, 0.0]},
+        ),
         "cpopt.Problem.replace": (problem.replace, {}),
         "cpopt.Problem.with_print_level": (problem.with_print_level, {"level": 5}),
         "cpopt.Problem.with_time_limit": (problem.with_time_limit, {"seconds": 10.0}),

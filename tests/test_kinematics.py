@@ -133,6 +133,6 @@ def test_the_symbolic_inverse_map_is_finite_outside_the_reach(kind):
     far = (5.0, 0.0) if kind == "RRR" else (0.0, 1.5)  # beyond l1 + l2, or |y| > l2
     assert np.isfinite(np.asarray(f(*far, 0.3))).all()
     pts, theta = _poses(arm, 5)
-    inside = np.hstack([np.asarray(f(px, py, t)) for (px, py), t in zip(pts, theta)]).T
+    inside = np.hstack([np.asarray(f(px, py, t)) for (px, py), t in zip(pts, theta, strict=True)]).T
     q = inverse_position(arm, pts[:, 0], pts[:, 1], theta)
     assert np.cos(inside) == pytest.approx(np.cos(q), abs=1e-12)

@@ -316,8 +316,11 @@ class NoiseSpec(_Spec):
 class TrackingSpec(_Spec):
     """Tracking of the plan by a controller on a realistic plant (see docs/problems.md)."""
 
-    controller: Literal["tvlqr", "tvlqr_timescaled", "dfl"] = "tvlqr"
+    controller: Literal["tvlqr", "tvlqr_timescaled", "dfl", "flat_mpc"] = "tvlqr"
     rate_hz: Annotated[float, Field(gt=0, le=100000, allow_inf_nan=False)] = 1000.0
+    replan_period: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 0.02
+    replan_delay: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] | None = None
+    replan_deadline: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] | None = None
     Q: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_Q)
     R: Pair(Positive) | None = None  # absent: relative to the plan's peak torques
     Qf: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_QF)

@@ -433,6 +433,16 @@ def check_tracking(spec: ProblemSpec, source: str) -> None:
             "the plant's third link needs its centre of mass beyond its joint (> 0 m), "
             f"got {com3!r}",
         )
+    if spec.tracking.controller == "flat_mpc" and (
+        spec.planner != "optimize" or spec.optimizer.curve == "path_timing"
+    ):
+        raise ProblemError(
+            source,
+            "tracking.controller",
+            "flat_mpc re-plans with the flat optimizer: it needs planner: optimize with "
+            f"B-spline curves (got planner: {spec.planner}, optimizer.curve: "
+            f"{spec.optimizer.curve}); use tvlqr",
+        )
     if (
         spec.tracking.controller == "dfl"
         and spec.planner == "collocation"

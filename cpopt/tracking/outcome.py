@@ -114,7 +114,7 @@ class TrackingOutcome:
     Attributes
     ----------
     controller : str
-        ``tvlqr``, ``tvlqr_timescaled`` or ``dfl``.
+        ``tvlqr``, ``tvlqr_timescaled``, ``dfl`` or ``flat_mpc``.
     rate_hz : float
         Control rate [Hz].
     t : numpy.ndarray
@@ -143,6 +143,9 @@ class TrackingOutcome:
     arrived : bool
         Whether the controller's progress reached the end of the plan (a run that diverged or
         ran out of extra time did not).
+    replans : dict or None
+        ``flat_mpc``'s re-plans: ``count``, ``median_ms``, ``p99_ms`` (wall time), ``misses``
+        (the fraction over their deadline or not solved), ``applied`` (how many took effect).
     """
 
     controller: str
@@ -159,6 +162,7 @@ class TrackingOutcome:
     tolerance: Tolerance = field(default_factory=Tolerance)
     progress: np.ndarray | None = None
     arrived: bool = True
+    replans: dict | None = None
 
     @property
     def delay(self) -> float:
@@ -204,6 +208,7 @@ class TrackingOutcome:
             "max_lag": self.max_lag,
             "success": self.success,
             "tolerance": self.tolerance.as_dict(),
+            **({} if self.replans is None else {"replans": self.replans}),
         }
 
     def table(self) -> np.ndarray:

@@ -140,7 +140,8 @@ class TrackingRefused:
 
 
 def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
-    """Track a plan as the problem's ``tracking`` block asks (see docs/problems.md).
+    """Track a plan as the problem's ``tracking`` block asks (see docs/problems.md);
+    ``flat_mpc`` re-plans from the problem (:func:`cpopt.tracking.mpc.track_flat_mpc`).
 
     The plant's torque limits are ``tracking.plant.torque_limit``, else the problem's
     ``optimizer.limits.torque``; its links are the arm's with the block's overrides.
@@ -159,6 +160,11 @@ def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
     )
     noise = Noise(tuple(spec.noise.position), tuple(spec.noise.velocity), spec.noise.seed)
     gains = {"Q": spec.Q, "R": spec.R, "Qf": spec.Qf, "poles": spec.poles}
+    if spec.controller == "flat_mpc":  # re-plans with the flat optimizer: imported when used
+        from .mpc import MPCSettings, track_flat_mpc
+
+        settings = MPCSettings(spec.replan_period, spec.replan_delay, spec.replan_deadline)
+        return track_flat_mpc(problem, plan, plant, noise, spec.rate_hz, None, settings, **gains)
     try:
         return track(
             plan, spec.controller, plant, noise, spec.rate_hz, engine=spec.plant.engine, **gains

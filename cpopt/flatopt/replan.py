@@ -1,0 +1,266 @@
+"""Re-planning from a measured state: the remaining motion solved once, fast, with a fallback.
+
+A re-plan at time t is the flat optimizer's NLP for the remaining motion
+(:mod:`cpopt.flatopt.remaining_motion`): the same transcription, objective and limits, its start
+pinned to the measured (q, qd) with xi and eta free, its pattern of signs of gamma and the
+switch times still ahead kept. The NLP is built and compiled once per structure (the fixed
+node values are its parameters, :func:`cpopt.flatopt.transcribe.build` caches it), warm
+started from the current plan (its CP refitted on the remaining phases,
+:func:`cpopt.flatopt.warm_start.seeded_guess`), and solved by Ipopt within a deadline. One
+round only: a re-plan does not refine its sample grid (a refinement is a new structure and a
+new build); it is certified like any plan (gamma exactly, limits on the grid) and a re-plan
+that does not solve, or solves too late, keeps the previous plan.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..plan import CPPlan
+from ..problem import Problem
+from ..solver import run_nlp
+from ..trajectory import Trajectory, sample
+from .remaining_motion import Remaining, remaining, shifted
+from .transcribe import build, initial_grids
+from .warm_start import initial_guess, seeded_guess
+
+SOLVER_SETTINGS = {"tol": 1e-6, "mu_strategy": "monotone", "print_level": 0}
+"""Ipopt's settings for a re-plan (``optimizer.solver`` keys): a re-plan starts next to its
+optimum, where the monotone barrier from the warm start's small mu_init
+(:data:`~cpopt.flatopt.transcribe.WARM_MU_INIT`) takes fewer iterations than the adaptive one,
+and 1e-6 is far below what a plan tracked by feedback at 1 kHz can tell apart."""
+REPLAN_ITERATIONS = 100
+"""Most Ipopt iterations of a re-plan (a warm-started re-plan near its plan takes a few; one
+that needs more has lost its basin and the previous plan is the better bet)."""
+
+
+@dataclass(frozen=True)
+class Replan:
+    """The outcome of :func:`replan`.
+
+    Attributes
+    ----------
+    status : str
+        ``solved``; ``holding`` (less than :data:`~cpopt.flatopt.remaining_motion.NEAR_NODE` left:
+        the plan holds the goal); ``late`` (solved after the deadline); or the solver's status
+        (``time_limit``, ``max_iterations``, ``infeasible``, ``not_converged``).
+    plan : CPPlan
+        The plan to follow from now on, in the plan's clock: the new one when solved, else the
+        previous one.
+    kept_previous : bool
+        True when ``plan`` is the previous plan.
+    t : float
+        The re-plan instant [s].
+    iterate : CPPlan or None
+        The solver's last iterate as a plan on [t, T] (the best it had when it failed).
+    objective : float
+        The remaining motion's objective at the iterate.
+    iterations : int
+        Ipopt iterations.
+    time_s : float
+        Wall time of the re-plan, warm start and unpacking included [s].
+    multipliers : Multipliers or None
+        The newest solved re-plan's multipliers, for the next re-plan's ``warm``.
+    message : str
+        The solver's own word (Ipopt's return status).
+    """
+
+    status: str
+    plan: CPPlan
+    kept_previous: bool
+    t: float
+    iterate: CPPlan | None = None
+    objective: float = math.nan
+    iterations: int = 0
+    time_s: float = 0.0
+    multipliers: Multipliers | None = None
+    message: str = ""
+
+    @property
+    def solved(self) -> bool:
+        """True when the plan is a new one, solved in time."""
+        return self.status == "solved"
+
+
+def variable_bounds(nlp, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of the whole decision vector: the core's, the lifted samples unbounded."""
+    lo, hi = nlp.layout.bounds(problem.free)
+    n_lifted = nlp.solver.size_in(0)[0] - nlp.layout.size
+    return np.r_[lo, [-np.inf] * n_lifted], np.r_[hi, [np.inf] * n_lifted]
+
+
+def shifted_seed(seed: Trajectory, t: float) -> Trajectory:
+    """The samples of the current plan in the re-plan's clock (time t [s] becomes 0)."""
+    from dataclasses import replace
+
+    return replace(seed, t=seed.t - t)
+
+
+@dataclass(frozen=True)
+class Multipliers:
+    """A solved re-plan's multipliers, for the next re-plan of the same structure.
+
+    Attributes
+    ----------
+    structure : tuple
+        What the NLP's rows depend on: node count, signs of gamma, switches, freed names.
+    lam_x, lam_g : numpy.ndarray
+        Bound and constraint multipliers as nlpsol returns them.
+    """
+
+    structure: tuple
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+
+
+def structure(rest: Remaining) -> tuple:
+    """The NLP structure of a remaining motion (two with the same share their rows)."""
+    p = rest.problem
+    return (len(p.nodes), rest.signs, rest.switches, tuple(sorted(p.free)))
+
+
+def with_replan_settings(problem: Problem, torque_limit=None) -> Problem:
+    """The problem with the re-plan's Ipopt settings (:data:`SOLVER_SETTINGS`) and, if given,
+    the motors' ``torque_limit`` (2,) [N m or N] as its torque limits (a joint's None keeps
+    the problem's)."""
+    from dataclasses import replace
+
+    from ..limits import arm_limits
+
+    o = problem.spec.optimizer
+    update = {"solver": o.solver.model_copy(update=SOLVER_SETTINGS)}
+    if torque_limit is not None:
+        torque = [
+            a if a is not None else b for a, b in zip(torque_limit, o.limits.torque, strict=True)
+        ]
+        update["limits"] = o.limits.model_copy(update={"torque": torque})
+    optimizer = o.model_copy(update=update)
+    spec = problem.spec.model_copy(update={"optimizer": optimizer})
+    return replace(problem, spec=spec, limits=arm_limits(optimizer.limits, problem.arm))
+
+
+def start_vector(nlp, problem: Problem, signs, seed: Trajectory, p: np.ndarray) -> np.ndarray:
+    """The initial vector: the current plan refitted (:func:`seeded_guess`), or the closed
+    form through the nodes where the objective is not finite there (measured: a re-plan of a
+    re-plan of transfer_min_torque on the model, whose start's free fourth CP derivative
+    had grown large, fitted a sample where the torque is NaN, and Ipopt stopped at once)."""
+    x0 = seeded_guess(nlp, problem, signs, seed)
+    if np.isfinite(float(nlp.solver.get_function("nlp_f")(x0, p))):
+        return x0
+    return initial_guess(nlp, problem, signs)
+
+
+def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, warm, motors):
+    """(run, new plan in the plan's clock, multipliers) of one Ipopt solve of the remaining
+    motion; ``warm`` (:class:`Multipliers` or None) the previous re-plan's multipliers, used
+    when its structure is this one's (Ipopt then starts from the primal-dual point);
+    ``motors`` the torque limits to plan within (None: the problem's)."""
+    from . import plan_from
+
+    problem = with_replan_settings(rest.problem, motors)
+    signs, switches = rest.signs, rest.switches
+    key = structure(rest)
+    resume = warm is not None and warm.structure == key
+    nlp = build(problem, signs, initial_grids(problem), warm=True, resume=resume)
+    p = nlp.parameters(problem.values)
+    lbx, ubx = variable_bounds(nlp, problem)
+    x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
+    arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+    if resume:
+        arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
+    run = run_nlp(nlp.solver, nlp.reporter, "", iterations, None, deadline, **arguments)
+    multipliers = Multipliers(key, run.lam_x, run.lam_g) if run.status == "solved" else warm
+    try:
+        plan, _, _ = plan_from(problem, nlp, run.x, p, signs, switches)
+    except ValueError:  # an iterate so far off that its phases no longer make curves
+        return run, None, multipliers
+    return run, shifted(plan, rest.t0), multipliers
+
+
+def replan(
+    problem: Problem,
+    plan: CPPlan,
+    t: float,
+    q,
+    qd,
+    deadline_s: float = math.inf,
+    seed: Trajectory | None = None,
+    iterations: int = REPLAN_ITERATIONS,
+    warm: Multipliers | None = None,
+    free_compensator: bool = True,
+    torque_limit=None,
+) -> Replan:
+    """Re-plan the remaining motion of ``plan`` from the measured joint state at time t.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem ``plan`` solves (objective, limits, freed values and bounds).
+    plan : CPPlan
+        The current plan (a flat plan of :func:`cpopt.flatopt.optimize`, or a re-plan of it).
+    t : float
+        The re-plan instant in the plan's clock [s].
+    q, qd : array_like
+        The measured joint positions and velocities (3,) [rad or m, rad/s or m/s].
+    deadline_s : float
+        Wall time the re-plan may take [s]; Ipopt is stopped there and a re-plan that ends
+        later (``late``) keeps the previous plan.
+    seed : Trajectory, optional
+        ``sample(plan)``, when the caller has it (a loop re-planning from the same plan).
+    iterations : int
+        Most Ipopt iterations.
+    warm : Multipliers, optional
+        The previous re-plan's multipliers (:attr:`Replan.multipliers`): a re-plan of the same
+        structure starts from them.
+    free_compensator : bool
+        xi and eta at t free (the default) or held at the plan's.
+    torque_limit : sequence of (float or None), optional
+        The motors' torque limits [N m or N] the re-plan keeps (None: the problem's).
+
+    Returns
+    -------
+    Replan
+        The plan to follow and how it was obtained; never a silent success: a failed solve
+        keeps the previous plan and reports the solver's status and its iterate.
+    """
+    tic = time.perf_counter()
+    deadline = time.monotonic() + deadline_s
+    rest = remaining(problem, plan, t, q, qd, free_compensator)
+    if rest is None:
+        return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
+    seed = sample(plan) if seed is None else seed
+    run, new, multipliers = _solve(rest, seed, deadline, iterations, warm, torque_limit)
+    elapsed = time.perf_counter() - tic
+    status = run.status
+    if status == "solved" and (new is None or elapsed > deadline_s):
+        status = "late" if new is not None else "not_converged"
+    ok = status == "solved"
+    return Replan(
+        status=status,
+        plan=new if ok else plan,
+        kept_previous=not ok,
+        t=t,
+        iterate=new,
+        objective=run.objective,
+        iterations=run.iterations,
+        time_s=elapsed,
+        multipliers=multipliers,
+        message=run.return_status,
+    )
+
+
+__all__ = [
+    "REPLAN_ITERATIONS",
+    "Multipliers",
+    "Replan",
+    "replan",
+    "shifted_seed",
+    "start_vector",
+    "structure",
+    "variable_bounds",
+    "with_replan_settings",
+]
