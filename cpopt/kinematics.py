@@ -247,15 +247,6 @@ def joint_state(arm: Arm, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return q[0], qd[0]
 
 
-OUTSIDE_REACH = 1e-10
-"""The floor of the squared sine (RRR) or cosine (PRR) under the symbolic inverse map's square
-root: outside the reach the map gives the stretched arm with enormous but finite torques, not
-NaN. An optimizer's first point (a fit of a seed) may graze the edge of the reach, and a NaN
-there ends Ipopt at iteration 0 (``Invalid_Number_Detected``; a random RRR transfer whose
-patterned seed costs 0.4 times the one-sign plan); later iterates outside are rejected by the
-line search either way. The reach constraint keeps solutions inside."""
-
-
 def inverse_position_symbolic(arm: Arm, x, y, theta):
     """Joint coordinates (3,) from the pose as CasADi expressions, on the arm's branch.
 
@@ -268,7 +259,7 @@ def inverse_position_symbolic(arm: Arm, x, y, theta):
     l1, l2 = arm.links[0].length, arm.links[1].length
     if arm.kind == "RRR":
         c2 = (px**2 + py**2 - l1**2 - l2**2) / (2 * l1 * l2)
-        s2 = ca.sqrt(ca.fmax(1 - c2**2, OUTSIDE_REACH)) * arm.branch_sign
+        s2 = ca.sqrt(1 - c2**2) * arm.branch_sign
         q2 = ca.atan2(s2, c2)
         q1 = ca.atan2(py, px) - ca.atan2(l2 * s2, l1 + l2 * c2)
         return ca.vertcat(q1, q2, theta - q1 - q2)
@@ -277,7 +268,7 @@ def inverse_position_symbolic(arm: Arm, x, y, theta):
         return ca.vertcat(q1, ca.sqrt(px**2 + py**2), theta - q1)
     if arm.kind == "PRR":
         s2 = py / l2
-        c2 = ca.sqrt(ca.fmax(1 - s2**2, OUTSIDE_REACH)) * arm.branch_sign
+        c2 = ca.sqrt(1 - s2**2) * arm.branch_sign
         q2 = ca.atan2(s2, c2)
         return ca.vertcat(px - l2 * c2, q2, theta - q2)
     return ca.vertcat(px, py, theta)

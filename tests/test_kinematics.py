@@ -10,7 +10,6 @@ from cpopt.kinematics import (
     forward_pose,
     inverse_derivatives,
     inverse_position,
-    inverse_position_symbolic,
     kinematic_functions,
 )
 from cpopt.robot import Arm, Link
@@ -118,21 +117,3 @@ def test_the_branch_margin_is_positive_exactly_on_the_arms_branch(key):
     off = np.asarray(branch_margin(arm, other.T)).ravel()
     assert off == pytest.approx(-on - 2 * BRANCH_MARGIN, abs=1e-12)
     assert branch_margin(ARMS[("PPR", None)], q.T) is None
-
-
-@pytest.mark.parametrize("kind", ["RRR", "PRR"])
-def test_the_symbolic_inverse_map_is_finite_outside_the_reach(kind):
-    """Outside the reach the symbolic map gives the stretched arm (finite), not NaN: a fit of a
-    seed that grazes the edge starts the optimizer there (OUTSIDE_REACH); inside, it is the
-    inverse map."""
-    import casadi as ca
-
-    arm = ARMS[(kind, "elbow_down" if kind == "RRR" else "forward")]
-    x, y, th = ca.SX.sym("x"), ca.SX.sym("y"), ca.SX.sym("th")
-    f = ca.Function("ik", [x, y, th], [inverse_position_symbolic(arm, x, y, th)])
-    far = (5.0, 0.0) if kind == "RRR" else (0.0, 1.5)  # beyond l1 + l2, or |y| > l2
-    assert np.isfinite(np.asarray(f(*far, 0.3))).all()
-    pts, theta = _poses(arm, 5)
-    inside = np.hstack([np.asarray(f(px, py, t)) for (px, py), t in zip(pts, theta, strict=True)]).T
-    q = inverse_position(arm, pts[:, 0], pts[:, 1], theta)
-    assert np.cos(inside) == pytest.approx(np.cos(q), abs=1e-12)
