@@ -19,6 +19,7 @@ stay at their guesses: a seed only needs to say roughly where gamma changes sign
 from __future__ import annotations
 
 import itertools
+import math
 import time
 
 import casadi as ca
@@ -173,6 +174,7 @@ def hermite_simpson(
     limit: int | None = None,
     switch_ceiling: float | None = None,
     branch: float = BRANCH_MARGIN,
+    deadline: float = math.inf,
 ):
     """Solve the problem by Hermite-Simpson collocation, without the regularity constraint or
     with a pattern of signs of gamma.
@@ -198,6 +200,8 @@ def hermite_simpson(
     branch : float
         How far from the edge of the arm's branch the plan keeps
         (:func:`cpopt.kinematics.branch_margin`).
+    deadline : float
+        ``time.monotonic()`` by which Ipopt stops (its wall-time limit), whatever it has.
 
     Returns
     -------
@@ -256,6 +260,9 @@ def hermite_simpson(
     options = ipopt_options(problem.spec.optimizer.solver, False)
     if limit is not None:
         options["max_iter"] = min(limit, options["max_iter"])
+    if math.isfinite(deadline):
+        left = max(deadline - time.monotonic(), 1e-3)
+        options["max_wall_time"] = min(left, options.get("max_wall_time") or math.inf)
     solver = ca.nlpsol(
         "seed", "ipopt", nlp, {"expand": False, "print_time": False, "ipopt": options}
     )

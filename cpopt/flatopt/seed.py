@@ -184,9 +184,10 @@ SEED_BRANCH = 0.1
 RPR's extension [m]; :func:`cpopt.kinematics.branch_margin`): a flat plan's fit of a seed that
 grazes the edge (a random RRR transfer folding its elbow to sin q2 = 0.01) leaves the reach
 between the samples, and the flat solve started at 1e27 times the seed's objective."""
-PATTERNED_LIMIT = 150
-"""Ipopt iterations of a patterned seed (:func:`patterned_seed`); measured on random problems,
-the solved ones took 9-40 from the seed."""
+PATTERNED_LIMIT = 60
+"""Ipopt iterations of a patterned seed (:func:`patterned_seed`): the solved ones measured on
+random problems took 9-40 from the seed; a hard RPR swing-down spent 10 s in 150 without
+solving."""
 
 
 def patterned_seed(
@@ -195,6 +196,7 @@ def patterned_seed(
     times: tuple[float, ...],
     signs: tuple[int, ...],
     limit: int = PATTERNED_LIMIT,
+    deadline: float = math.inf,
 ) -> Seed | None:
     """The seed solved again with a pattern of signs of gamma imposed: ``sign * gamma >=
     gamma_min`` on every piece between the file's nodes and the switch ``times`` [s], the
@@ -203,7 +205,9 @@ def patterned_seed(
     A flat solve started from the unconstrained seed must first lift gamma off zero around
     each crossing, where the flat map is singular; from this one it starts regular (a random
     RPR transfer: 497 iterations to a failure from the seed, 193 to a plan from this). Its
-    objective is what the pattern costs on the seed's coarse grid.
+    objective is what the pattern costs on the seed's coarse grid. Ipopt stops at ``deadline``
+    (``time.monotonic()``) and the seed is then None: a search past its deadline keeps its
+    best plan.
 
     Returns
     -------
@@ -222,7 +226,7 @@ def patterned_seed(
         ceiling = o.gamma_min * (1 + GAMMA_SAFETY) if o.smooth_torque else None
         status, plan, stats = hermite_simpson(
             problem, seed.report.intervals, (times, signs), seed.trajectory, limit, ceiling,
-            SEED_BRANCH,
+            SEED_BRANCH, deadline,
         )  # fmt: skip
     except SeedUnsupportedError:
         return None

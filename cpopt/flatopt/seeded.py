@@ -231,9 +231,13 @@ class Run:
         """The seed solved again with ``pattern`` imposed (:func:`~cpopt.flatopt.seed.
         patterned_seed`; once per pattern, counted in the stage ``patterned``)."""
         if pattern not in self.shaped:
+            if time.monotonic() > self.deadline:  # none started past the deadline
+                return None
             progress.stage(f"switch search: the seed with {len(pattern.times)} switch(es)")
             tic = time.perf_counter()
-            shaped = patterned_seed(self.problem, self.seed, pattern.times, pattern.signs)
+            shaped = patterned_seed(
+                self.problem, self.seed, pattern.times, pattern.signs, deadline=self.deadline
+            )
             figures = self.stages["patterned"]
             figures.iterations += shaped.report.iterations if shaped else 0
             figures.time_s += time.perf_counter() - tic
