@@ -166,6 +166,42 @@ def _gamma_rows(problem: Problem, X, M, torque, sigma: np.ndarray, at_switch, ce
     return [ca.vec(ca.vertcat(*rows))], [lower], [upper.ravel(order="F")]
 
 
+def _collocation_rows(problem: Problem, X, M, torque, h, index, branch: float) -> tuple:
+    """The Hermite-Simpson conditions (the midpoint state of the cubic through the knots,
+    Simpson's rule), the torques' joins, the nodes' fields and the arm's branch: the rows, their
+    lower and upper bounds."""
+    n = h.numel()
+    rhs = state_derivative(problem.arm).map(n)
+    f0, f1, fm = rhs(X[:, :-1], torque.start), rhs(X[:, 1:], torque.end), rhs(M, torque.middle)
+    mid = M - 0.5 * (X[:, :-1] + X[:, 1:]) - ca.repmat(h / 8, 6, 1) * (f0 - f1)
+    simpson = X[:, 1:] - X[:, :-1] - ca.repmat(h / 6, 6, 1) * (f0 + 4 * fm + f1)
+    g = [ca.vec(mid), ca.vec(simpson), torque.joins]
+    lbg, ubg = [np.zeros(12 * n + torque.joins.numel())], [np.zeros(12 * n + torque.joins.numel())]
+    for i, k in enumerate(index):
+        rows, lo, hi = _node_rows(problem, i, X[:, k])
+        g.append(ca.vertcat(*rows))
+        lbg.append(lo)
+        ubg.append(hi)
+    edge = branch_margin(problem.arm, ca.horzcat(X, M)[:3, :], branch)  # knots, midpoints
+    if edge is not None:
+        g.append(edge.T)
+        lbg.append(np.zeros(2 * n + 1))
+        ubg.append(np.full(2 * n + 1, np.inf))
+    return g, lbg, ubg
+
+
+def _ipopt(problem: Problem, limit: int | None, deadline: float) -> dict:
+    """Ipopt's options: the file's, at most ``limit`` iterations, stopped at ``deadline``
+    (``time.monotonic()``)."""
+    options = ipopt_options(problem.spec.optimizer.solver, False)
+    if limit is not None:
+        options["max_iter"] = min(limit, options["max_iter"])
+    if math.isfinite(deadline):
+        left = max(deadline - time.monotonic(), 1e-3)
+        options["max_wall_time"] = min(left, options.get("max_wall_time") or math.inf)
+    return options
+
+
 def hermite_simpson(
     problem: Problem,
     intervals: int,
@@ -223,30 +259,14 @@ def hermite_simpson(
     switches, signs = pattern if pattern is not None else ((), None)
     knots, index, phase = _intervals(problem, intervals, switches)
     n = knots.size - 1
+    steps = _knots_at(knots, switches)
     X, M = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n)
-    torque = Torques(n, linear=signs is not None, steps=_knots_at(knots, switches))
+    torque = Torques(n, linear=signs is not None, steps=steps)
     h = ca.DM(np.diff(knots)).T
-    rhs = state_derivative(problem.arm).map(n)
-    f0, f1, fm = rhs(X[:, :-1], torque.start), rhs(X[:, 1:], torque.end), rhs(M, torque.middle)
-    # Hermite-Simpson: the midpoint state of the cubic through the knots, Simpson's rule
-    mid = M - 0.5 * (X[:, :-1] + X[:, 1:]) - ca.repmat(h / 8, 6, 1) * (f0 - f1)
-    simpson = X[:, 1:] - X[:, :-1] - ca.repmat(h / 6, 6, 1) * (f0 + 4 * fm + f1)
-    g = [ca.vec(mid), ca.vec(simpson), torque.joins]
-    lbg, ubg = [np.zeros(12 * n + torque.joins.numel())], [np.zeros(12 * n + torque.joins.numel())]
-    for i, k in enumerate(index):
-        rows, lo, hi = _node_rows(problem, i, X[:, k])
-        g.append(ca.vertcat(*rows))
-        lbg.append(lo)
-        ubg.append(hi)
-    edge = branch_margin(problem.arm, ca.horzcat(X, M)[:3, :], branch)  # knots, midpoints
-    if edge is not None:
-        g.append(edge.T)
-        lbg.append(np.zeros(2 * n + 1))
-        ubg.append(np.full(2 * n + 1, np.inf))
+    g, lbg, ubg = _collocation_rows(problem, X, M, torque, h, index, branch)
     if signs is not None:
         at_switch = np.zeros(n + 1, bool)
-        if switch_ceiling is not None:
-            at_switch[_knots_at(knots, switches)] = True
+        at_switch[steps] = switch_ceiling is not None
         sigma = np.asarray(signs, float)[phase]
         rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, switch_ceiling)
         g += rows
@@ -257,15 +277,8 @@ def hermite_simpson(
         "f": w["torque"] * torque.integral(h),
         "g": ca.vertcat(*g),
     }
-    options = ipopt_options(problem.spec.optimizer.solver, False)
-    if limit is not None:
-        options["max_iter"] = min(limit, options["max_iter"])
-    if math.isfinite(deadline):
-        left = max(deadline - time.monotonic(), 1e-3)
-        options["max_wall_time"] = min(left, options.get("max_wall_time") or math.inf)
-    solver = ca.nlpsol(
-        "seed", "ipopt", nlp, {"expand": False, "print_time": False, "ipopt": options}
-    )
+    options = {"expand": False, "print_time": False}
+    solver = ca.nlpsol("seed", "ipopt", nlp, {**options, "ipopt": _ipopt(problem, limit, deadline)})
     q, qd, tau = cold_guess(problem, knots) if guess is None else warm_guess(guess, knots)
     states = np.column_stack([q, qd])
     middle = 0.5 * (states[:-1] + states[1:])
@@ -277,10 +290,7 @@ def hermite_simpson(
     solved = time.perf_counter()
     check_stop()
     said, status, iterations = read_stats(solver.stats())
-    xs = np.asarray(solution["x"]).ravel()
-    states = xs[: 6 * (n + 1)].reshape(n + 1, 6)
-    values = xs[6 * (n + 1) : 6 * (n + 1) + 2 * torque.count].reshape(torque.count, 2)
-    plan = (_linear_plan if torque.linear else _plan)(problem, knots, index, states, values)
+    plan = _read_plan(problem, knots, index, torque, np.asarray(solution["x"]).ravel())
     stats = SolverStats(
         iterations=iterations,
         build_time_s=built - tic,
@@ -290,6 +300,14 @@ def hermite_simpson(
         objective=float(solution["f"]),
     )
     return status, plan, stats
+
+
+def _read_plan(problem: Problem, knots, index, torque: Torques, xs: np.ndarray) -> JointPlan:
+    """The JointPlan of a solution vector ``xs`` (knot states, torques, midpoint states)."""
+    n = knots.size - 1
+    states = xs[: 6 * (n + 1)].reshape(n + 1, 6)
+    values = xs[6 * (n + 1) : 6 * (n + 1) + 2 * torque.count].reshape(torque.count, 2)
+    return (_linear_plan if torque.linear else _plan)(problem, knots, index, states, values)
 
 
 def _plan(problem: Problem, knots, index, states, torques) -> JointPlan:
