@@ -138,8 +138,9 @@ def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_s
         (ROOT / "problems" / "rpr_transfer.yaml", "seed", "one_sign"),
         (ROOT / "problems" / "rpr_transfer.yaml", "greedy", "greedy"),
         # the seed's two switches (1.36, 1.80 s) did not solve from the seed (1094 iterations
-        # there), the one-sign bound 4379 dominates them; the first moved 0.2 s from the via
-        # state (1.2 s) solves at 501.5 (issue 30: the greedy search had kept one sign)
+        # there), the one-sign bound 4379 dominates them at iteration 99 (their patterned seed
+        # is cheaper than the bound: judged from iteration 100 on); an alternative near the
+        # via state (1.2 s) solves at 484.1 (issue 30: the greedy search had kept one sign)
         (ROOT / "problems" / "prr_swing_up.yaml", "seed", "near"),
     ],
     ids=["rpr transfer seed", "rpr transfer greedy", "prr swing-up seed"],
@@ -156,7 +157,7 @@ def test_no_search_raises_on_an_unseen_problem(path, search, method):
     one_sign = [a.objective for a in d.sign_choices if a.status == "solved" and not a.switch_times]
     assert result.status == "solved" and result.solver.objective <= min(one_sign) * (1 + 1e-9)
     if method == "near":
-        assert result.solver.objective == pytest.approx(501.5, rel=0.01)
+        assert result.solver.objective == pytest.approx(484.1, rel=0.01)
         assert result.solver.objective < 0.2 * min(one_sign)
 
 
