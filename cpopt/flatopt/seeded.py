@@ -412,8 +412,9 @@ def _first_objective(run: Run, pattern: Pattern, start) -> float:
 def _starts(run: Run, pattern: Pattern) -> list:
     """Where a pattern's flat solve starts, in order: the unconstrained seed (the bundled
     problems' winners start there), then its patterned seed; the other way round when the fit
-    of the seed starts higher (:data:`PROBE_RATIO`). Measured at the first iterate: the benchmark transfer
-    2.0e5 from the seed, 1.1e5 from its patterned seed (which then wanders: seed first); a
+    of the seed starts higher (:data:`PROBE_RATIO`). Measured at the first iterate: the
+    benchmark transfer 2.0e5 from the seed, 1.1e5 from its patterned seed (which then wanders:
+    seed first); a
     random RPR transfer 1.4e13 and 1.4e4, a random RRR transfer 9.5e27 and 1.2e5, where the
     seed's fit leaves the reach."""
     shaped = run.patterned(pattern)
