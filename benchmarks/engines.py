@@ -24,8 +24,8 @@ import numpy as np
 import pinocchio as pin
 
 import cpopt
-from cpopt.dynamics import arm_dynamics
-from cpopt.mujoco_arm import arm_model, arm_state, mass_matrix
+from cpopt.model.dynamics import arm_dynamics
+from cpopt.model.mujoco_arm import arm_model, arm_state, mass_matrix
 from cpopt.problem import bundled_problems, load_problem
 from cpopt.tracking import Plant, make_controller, track
 from cpopt.tracking.mujoco_plant import simulate_mujoco

@@ -385,7 +385,7 @@ def run_distributed(problems, args, start: float) -> list:
     the serial order, printed as they complete (headroom rows after the others)."""
     from dask.distributed import as_completed
 
-    from cpopt.safe_yaml import read_yaml
+    from cpopt.io.safe_yaml import read_yaml
     from cpopt.sweep.engine import connect
 
     data = {p.name: read_yaml(p.source) for p in problems}
