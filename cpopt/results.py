@@ -1,6 +1,6 @@
 """Solutions and their files: ``solution.json`` and ``trajectory.csv``, written whole or not at all.
 
-The file contract (documented in README.md):
+The file contract (documented in docs/cli.md, "Output contract"):
 
 * ``solution.json``: ``name``, ``status``, ``planner``, ``duration_s``, ``metrics``
   {``torque_sq_integral``, ``abs_power_integral``, ``peak_torque``, ``min_abs_gamma``,

@@ -14,7 +14,7 @@ given as Python callables): importing ``scipy.integrate`` takes 0.3-0.5 s of a f
 ``cpopt solve`` (it imports ``scipy.special``), more than the simulations themselves; and its
 steps cross the curve's breaks (measured on ``transfer_min_torque``'s open-loop replay: final
 state error 1.4e-7 with DOP853 at rtol 1e-11, 5.6e-11 here; every bundled problem's figures
-in the README). CasADi's cvodes was measured too: 0.3 s to build one integrator, more than a
+in docs/benchmarks.md). CasADi's cvodes was measured too: 0.3 s to build one integrator, more than a
 whole verification.
 
 The bounds of :mod:`cpopt.verify.integrate` hold with the same meaning: a state leaving
