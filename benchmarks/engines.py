@@ -1,4 +1,4 @@
-"""cpopt beside the field's engines: the figures the README quotes (issue 33).
+"""cpopt beside the field's engines: the figures docs/robots.md quotes (issue 33).
 
 * Pinocchio: mass matrix, bias, gravity and RNEA of Pinocchio's model of the URDF export against
   cpopt's at random states (all four kinds), and the passive joint's torque by Pinocchio's RNEA
@@ -6,7 +6,7 @@
 * MuJoCo: ``mj_fullM``, ``qfrc_bias`` and ``mj_inverse`` at random states, the final CP error of
   tracked plans on both engines, and the wall clock of a tracking run on each (the simulation
   alone, the controller built once; best of five);
-* ``--frame PATH``: the README's picture, the swing-up tracked by ``dfl`` on a MuJoCo plant
+* ``--frame PATH``: docs/robots.md's picture, the swing-up tracked by ``dfl`` on a MuJoCo plant
   whose links are 10 % heavier, with viscous friction, drawn at t = 0.95 s: the plan
   translucent, the tracked arm falling behind it (the run diverges at 1.2 s).
 
@@ -24,8 +24,8 @@ import numpy as np
 import pinocchio as pin
 
 import cpopt
-from cpopt.dynamics import arm_dynamics
-from cpopt.mujoco_arm import arm_model, arm_state, mass_matrix
+from cpopt.model.dynamics import arm_dynamics
+from cpopt.model.mujoco_arm import arm_model, arm_state, mass_matrix
 from cpopt.problem import bundled_problems, load_problem
 from cpopt.tracking import Plant, make_controller, track
 from cpopt.tracking.mujoco_plant import simulate_mujoco
@@ -151,7 +151,7 @@ def frame(path: Path) -> None:
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frame", type=Path, help="also write the README's picture here")
+    parser.add_argument("--frame", type=Path, help="also write docs/robots.md's picture here")
     args = parser.parse_args()
     pinocchio_figures()
     mujoco_figures()

@@ -78,10 +78,10 @@ def problems(name: str):
 
 def run(name: str, method: str, problem, repeats: int) -> Row:
     """Solve ``repeats`` times; measure the last solution."""
+    from cpopt.closedform.paths import wandering
+    from cpopt.closedform.trajectory import sample
     from cpopt.flatopt.transcribe import build
-    from cpopt.paths import wandering
     from cpopt.pipeline import solve
-    from cpopt.trajectory import sample
 
     solutions = [solve(problem) for _ in range(repeats)]
     first, last = solutions[0], solutions[-1]

@@ -29,11 +29,11 @@ import casadi as ca
 import numpy as np
 
 import cpopt
+from cpopt.closedform.trajectory import sample, sample_at
 from cpopt.flatopt import replan as rp
 from cpopt.flatopt.remaining_motion import remaining
 from cpopt.flatopt.transcribe import build, initial_grids
 from cpopt.problem import bundled_problems
-from cpopt.trajectory import sample, sample_at
 
 
 def condensed(nlp, keep: np.ndarray, p_size: int) -> tuple[dict, dict]:

@@ -37,9 +37,9 @@ exactly ``ROBUST <plan> <controller> sweep=<fraction> monte_carlo=<fraction>``.
 
 **Headroom.** Each optimized plan (planner ``optimize`` or ``collocation``) is also solved
 again with ``optimizer.limits.torque_headroom`` h (``--headroom``, default
-:data:`HEADROOM`, the README's recommendation; 0 skips this) on the benchmark's motors: the
-problem's own torque limits, or where it has none the 1.5 x peak motors of its h = 0 plan
-(then set as its torque limits, which that plan meets, so h = 0 is the same plan). A plan
+:data:`HEADROOM`, docs/benchmarks.md's recommendation; 0 skips this) on the benchmark's
+motors: the problem's own torque limits, or where it has none the 1.5 x peak motors of its
+h = 0 plan (then set as its torque limits, which that plan meets, so h = 0 is the same plan). A plan
 whose peak torques already leave h of the motors (every plan on 1.5 x peak motors when
 h <= 1/3) is itself the optimum with headroom h and is not solved again. The
 re-solved plan is tracked with ``tvlqr`` on the h = 0 plan's benchmark plant (the same motors,
@@ -197,7 +197,7 @@ def measure_mpc(problem, plan, args) -> Row:
 # --- Headroom: the plan re-solved with torque headroom, tracked with tvlqr -----------------
 
 HEADROOM = 0.2
-"""The headroom the README recommends (``--headroom``): see its robustness section."""
+"""The headroom docs/benchmarks.md recommends (``--headroom``), "Headroom: room for feedback"."""
 HEADROOM_CONTROLLER = "tvlqr"
 
 
@@ -385,7 +385,7 @@ def run_distributed(problems, args, start: float) -> list:
     the serial order, printed as they complete (headroom rows after the others)."""
     from dask.distributed import as_completed
 
-    from cpopt.safe_yaml import read_yaml
+    from cpopt.io.safe_yaml import read_yaml
     from cpopt.sweep.engine import connect
 
     data = {p.name: read_yaml(p.source) for p in problems}

@@ -29,7 +29,7 @@ def main(argv=None) -> int:
 
     from cpopt.pipeline import solve
     from cpopt.problem import bundled_problems, load_problem
-    from cpopt.simulate import verify
+    from cpopt.verify.simulate import verify
 
     wanted = set(filter(None, args.problems.split(",")))
     for path in bundled_problems():

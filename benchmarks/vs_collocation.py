@@ -131,12 +131,12 @@ def with_switches(problem, max_iter: int = 1000):
 
 def run_flat(problem, repeats: int, label: str, method: str = "flat") -> Row:
     """Solve with the flat optimizer ``repeats`` times; measure the last plan."""
+    from cpopt.closedform.plan import SingularPlanError
+    from cpopt.closedform.trajectory import metrics, sample
     from cpopt.flatopt import optimize
-    from cpopt.integrate import DivergenceError
-    from cpopt.kinematics import ReachError
-    from cpopt.plan import SingularPlanError
-    from cpopt.simulate import simulate_open_loop
-    from cpopt.trajectory import metrics, sample
+    from cpopt.model.kinematics import ReachError
+    from cpopt.verify.integrate import DivergenceError
+    from cpopt.verify.simulate import simulate_open_loop
 
     results, cold, cpu = _timed(lambda: optimize(problem), repeats)
     first, last = results[0], results[-1]

@@ -176,7 +176,7 @@ def _stages(search: dict, stage_times: dict) -> str:
 def run_flat(data: dict, switches, time_limit: float) -> Flat:
     """Solve ``data`` with ``gamma_switches`` set to ``switches``; never raises."""
     import cpopt
-    from cpopt.trajectory import metrics, sample
+    from cpopt.closedform.trajectory import metrics, sample
 
     out = Flat()
     tic = time.perf_counter()

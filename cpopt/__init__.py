@@ -1,6 +1,6 @@
 """cpopt: motion planning for three-link planar robots with a passive third joint under gravity.
 
-The Python API (see the README's Python section)::
+The Python API (see docs/getting_started.md, "Python")::
 
     import cpopt
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from . import pipeline
-from .plan import CPPlan
+from .closedform.plan import CPPlan
+from .io.safe_yaml import echo
 from .problem import Problem, ProblemError, read_problem
 from .problem.build import check_seconds
-from .progress import Progress, reporting
-from .safe_yaml import echo
+from .runtime.progress import Progress, reporting
 from .solution import Solution
 from .tracking import TrackingOutcome, TrackingRefused, track_problem
 

@@ -24,7 +24,7 @@ MAX_WORKERS = 1024
 about 150 MB), refused before any is started."""
 SWEEP_GRACE = 15.0
 """Seconds ``cpopt sweep`` gets after Ctrl-C to cancel its tasks and close its cluster before
-the process is ended (other commands get :data:`cpopt.budget.GRACE`)."""
+the process is ended (other commands get :data:`cpopt.runtime.budget.GRACE`)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -240,7 +240,7 @@ def _problems(files) -> tuple[list, bool]:
 
 def _outputs(problems, out: Path) -> tuple[list, bool]:
     """Create the output folder and check each problem's folder, before any solving."""
-    from .output import OutputError, check_problem_directory, make_directory
+    from .io.output import OutputError, check_problem_directory, make_directory
 
     if not problems:
         return [], False
@@ -262,7 +262,7 @@ def _outputs(problems, out: Path) -> tuple[list, bool]:
 
 def _write(solution, problem, outdir: Path, args) -> None:
     """Replace the problem's results: old ones go first, the JSON is written last."""
-    from .output import clear, locked, make_directory
+    from .io.output import clear, locked, make_directory
     from .results import write_solution
 
     make_directory(outdir)
@@ -298,8 +298,8 @@ def _render(solution, path: Path) -> None:
 
 
 def _cmd_solve(args) -> int:
-    from . import progress
     from .isolate import solve_isolated
+    from .runtime import progress
 
     out = Path(args.out)
     if args.engine == "mujoco" and args.animate:
@@ -331,7 +331,7 @@ def _cmd_solve(args) -> int:
 
 
 def _cmd_export_urdf(args) -> int:
-    from .output import OutputError, atomic_write, check_directory
+    from .io.output import OutputError, atomic_write, check_directory
 
     problem, error = _load(args.file)
     if error:
@@ -374,7 +374,7 @@ _announced = threading.Lock()
 
 def _interrupted() -> None:
     """The one line of a Ctrl-C (said once, by whichever of main and the watcher is first)."""
-    from .output import remove_temporaries
+    from .io.output import remove_temporaries
 
     remove_temporaries()
     if _announced.acquire(blocking=False):
@@ -394,7 +394,7 @@ def _caused_by_interrupt(err: BaseException) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``cpopt`` command; returns the exit code."""
-    from .budget import GRACE, hard_stop_on_interrupt
+    from .runtime.budget import GRACE, hard_stop_on_interrupt
 
     words = sys.argv[1:] if argv is None else argv
     grace = SWEEP_GRACE if words[:1] == ["sweep"] else GRACE

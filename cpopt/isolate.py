@@ -19,10 +19,10 @@ import signal
 import threading
 import time
 
-from . import progress
 from .pipeline import solve, time_limit_solution
 from .problem import Problem
 from .results import Solution
+from .runtime import progress
 
 GRACE = 2.0
 """Seconds a child gets beyond the limit to stop by itself and send what it has."""

@@ -1,14 +1,16 @@
-"""Evaluating a CasADi function over many samples at once."""
+"""Deprecated: the old path of :mod:`cpopt.model.mapping`, kept for one release.
 
-from __future__ import annotations
+Importing it warns and gives the new module itself, so its names (private ones included) and
+monkeypatching behave as before.
+"""
 
-from functools import lru_cache
+import importlib
+import sys
+import warnings
 
-import casadi as ca
-
-
-@lru_cache(maxsize=512)
-def mapped(function: ca.Function, count: int) -> ca.Function:
-    """``function.map(count)``, built once per function and count (maps are not free: the
-    simulations evaluate the same ones thousands of times)."""
-    return function.map(count)
+warnings.warn(
+    "cpopt.mapping moved to cpopt.model.mapping (old path removed next release)",
+    DeprecationWarning,
+    stacklevel=2,
+)
+sys.modules[__name__] = importlib.import_module("cpopt.model.mapping")

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .robot import Arm, Link
-from .safe_yaml import echo
+from .io.safe_yaml import echo
+from .model.robot import Arm, Link
 
 BACKENDS = ("egl", "osmesa")
 """MuJoCo's offscreen OpenGL backends, tried in this order."""
@@ -85,7 +85,7 @@ def _arm_from(data: dict) -> Arm:
 
 def _camera(mujoco, arm: Arm, q: np.ndarray):
     """A camera looking at the plane (x right, y up) that holds every frame's arm."""
-    from .kinematics import kinematic_functions
+    from .model.kinematics import kinematic_functions
 
     points = kinematic_functions(arm)["points"]
     pts = np.concatenate([np.asarray(points(qi)).T for qi in q])
@@ -101,7 +101,7 @@ def _camera(mujoco, arm: Arm, q: np.ndarray):
 
 def _decorated(mujoco, arm: Arm, ghost: bool):
     """The arm's model with a light backdrop, a light and a mark at the base (all drawing only)."""
-    from .mujoco_arm import arm_spec
+    from .model.mujoco_arm import arm_spec
 
     spec = arm_spec(arm, ghost=arm if ghost else None)
     spec.add_texture(
@@ -129,7 +129,7 @@ def render_frames(arm: Arm, q_plan, q_tracked=None, width: int = 480, height: in
     """Frames (N, height, width, 3) of the arm at joint positions ``q_plan`` (N, 3), with the
     tracked arm ``q_tracked`` (N, 3) solid and the plan translucent when given. Needs an OpenGL
     context in this process (``MUJOCO_GL`` set before MuJoCo is imported)."""
-    from .mujoco_arm import require_mujoco
+    from .model.mujoco_arm import require_mujoco
 
     mujoco = require_mujoco()
     q_plan = np.atleast_2d(q_plan)
@@ -155,7 +155,7 @@ def render_frames(arm: Arm, q_plan, q_tracked=None, width: int = 480, height: in
 def _write_images(frames: np.ndarray, path: Path, fps: float) -> None:
     from PIL import Image  # matplotlib's dependency
 
-    from .output import atomic_path
+    from .io.output import atomic_path
 
     images = [Image.fromarray(f) for f in frames]
     with atomic_path(path) as tmp:
@@ -209,7 +209,7 @@ def render(arm: Arm, q_plan, path: str | Path, q_tracked=None, fps: float = 25.0
     MujocoMissingError
         Without MuJoCo.
     """
-    from .mujoco_arm import require_mujoco
+    from .model.mujoco_arm import require_mujoco
 
     require_mujoco()
     path = Path(path)

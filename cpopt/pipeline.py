@@ -1,8 +1,8 @@
 """One problem through every stage: plan, sample, measure, verify by simulation.
 
 The whole of it runs under the problem's wall-clock budget (``optimizer.solver.max_time``,
-see :mod:`cpopt.budget`): when it runs out, the solution so far is returned with status
-``time_limit``. Each stage is reported to :mod:`cpopt.progress`.
+see :mod:`cpopt.runtime.budget`): when it runs out, the solution so far is returned with status
+``time_limit``. Each stage is reported to :mod:`cpopt.runtime.progress`.
 """
 
 from __future__ import annotations
@@ -12,16 +12,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
-from . import progress
-from .budget import Budget, TimeLimitExceeded, enforced, remaining
-from .kinematics import ReachError
-from .limits import Limit, rated_torques, violations
-from .plan import CPPlan, SingularPlanError, closed_form
+from .closedform.plan import CPPlan, SingularPlanError, closed_form
+from .closedform.trajectory import metrics, sample
+from .model.kinematics import ReachError
+from .model.limits import Limit, rated_torques, violations
 from .problem import Problem
 from .results import Solution
-from .simulate import DivergedVerification, verify
-from .solver import SolverStats
-from .trajectory import metrics, sample
+from .runtime import progress
+from .runtime.budget import Budget, TimeLimitExceeded, enforced, remaining
+from .runtime.solver import SolverStats
+from .verify.simulate import DivergedVerification, verify
 
 
 @dataclass
@@ -37,7 +37,7 @@ class StageRecord:
     started: list = field(default_factory=lambda: [("plan", time.perf_counter())])
 
     def reached(self, stage: str, **done) -> None:
-        """Enter a stage (reported to :mod:`cpopt.progress`), keeping what was ``done``."""
+        """Enter a stage (reported to :mod:`cpopt.runtime.progress`), keeping what was ``done``."""
         self.stage = stage
         for key, value in done.items():
             setattr(self, key, value)
@@ -169,7 +169,7 @@ def _evaluate(plan, name, solver, status, message, partial, checks: Checks) -> S
 def plan_collocation(problem: Problem, partial: StageRecord) -> Solution:
     """The collocation peer: warm start (optional), solve, sample, replay open loop."""
     from .collocation import RUN_LABEL, collocate, joint_metrics, joint_trajectory, replay
-    from .integrate import DivergenceError
+    from .verify.integrate import DivergenceError
 
     warm = None
     if problem.spec.collocation.warm_start == "flat":

@@ -10,11 +10,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .kinematics import kinematic_functions
-from .output import atomic_path
+from .closedform.trajectory import Trajectory
+from .io.output import atomic_path
+from .model.kinematics import kinematic_functions
 from .results import Solution
 from .tracking import TrackingOutcome
-from .trajectory import Trajectory
 
 
 def _strobe_indices(traj: Trajectory, phase: int, count: int) -> np.ndarray:

@@ -11,10 +11,10 @@ import numbers
 
 import numpy as np
 
+from .closedform.plan import CPPlan
 from .flatopt.replan import Multipliers, Replan
 from .flatopt.replan import replan as solve_remaining
-from .plan import CPPlan
-from .safe_yaml import echo as echo_value
+from .io.safe_yaml import echo as echo_value
 from .solution import Solution
 
 

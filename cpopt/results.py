@@ -1,6 +1,6 @@
 """Solutions and their files: ``solution.json`` and ``trajectory.csv``, written whole or not at all.
 
-The file contract (documented in README.md):
+The file contract (documented in docs/cli.md, "Output contract"):
 
 * ``solution.json``: ``name``, ``status``, ``planner``, ``duration_s``, ``metrics``
   {``torque_sq_integral``, ``abs_power_integral``, ``peak_torque``, ``min_abs_gamma``,
@@ -23,13 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .output import atomic_write
-from .plan import CPPlan
-from .simulate import Verification
-from .solver import SolverStats
+from .closedform.plan import CPPlan
+from .closedform.trajectory import Metrics, Trajectory
+from .io.output import atomic_write
+from .runtime.solver import SolverStats
 from .tracking import CSV_COLUMNS as TRACKING_CSV_COLUMNS
 from .tracking import TrackingOutcome, TrackingRefused
-from .trajectory import Metrics, Trajectory
+from .verify.simulate import Verification
 
 CSV_COLUMNS = (
     "t", "x", "y", "theta", "xdot", "ydot", "thetadot", "q1", "q2", "q3", "q1dot", "q2dot",

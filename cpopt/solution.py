@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from . import results
+from .closedform.trajectory import Trajectory, sample_at
+from .io.safe_yaml import echo
 from .mujoco_render import ImageFile, Time, check_render_arguments
 from .problem import Problem
-from .safe_yaml import echo
-from .trajectory import Trajectory, sample_at
 
 PLOT_KINDS = ("third_link", "arm", "torques", "gamma", "tracking")
 """The figures :meth:`Solution.plot` draws (those ``cpopt solve --plot`` writes as PNG)."""
@@ -55,7 +55,7 @@ class Solution(results.Solution):
     name, status, planner, plan, trajectory, metrics, verification, solver, message, tracking
         As in :class:`cpopt.results.Solution`: ``status`` is one of
         :data:`cpopt.results.STATUSES` (only ``solved`` is a success); ``metrics``
-        (:class:`cpopt.trajectory.Metrics`) holds the figures of merit in SI units.
+        (:class:`cpopt.closedform.trajectory.Metrics`) holds the figures of merit in SI units.
     problem : Problem or None
         The problem solved (its limits are drawn on the figures; :func:`cpopt.track` tracks
         with its settings).
@@ -141,7 +141,7 @@ class Solution(results.Solution):
             For a ``directory`` that is not a folder name, or a place a folder cannot be
             (an existing file, a path under a file), before anything is written.
         """
-        from .output import OutputError, check_directory
+        from .io.output import OutputError, check_directory
 
         if not isinstance(directory, str | Path) or not str(directory).strip():
             raise ValueError(f"directory must be a folder name, got {_shown(directory)}")
@@ -228,7 +228,7 @@ class Solution(results.Solution):
             Without a plan, or for a bad argument (named).
         cpopt.mujoco_render.RenderUnavailableError
             Where no OpenGL context can be made (EGL, then OSMesa, were tried).
-        cpopt.mujoco_arm.MujocoMissingError
+        cpopt.model.mujoco_arm.MujocoMissingError
             Without MuJoCo (``pip install 'cpopt[mujoco]'``).
         """
         from .mujoco_render import render

@@ -18,12 +18,12 @@ import pytest
 from test_cli import GOOD
 
 import cpopt
-from cpopt.budget import Budget, TimeLimitExceeded, check_time, enforced
 from cpopt.cli import main
-from cpopt.integrate import DivergenceError, integrate
 from cpopt.problem import parse_problem
-from cpopt.progress import Progress, reporting, stage
-from cpopt.solver import run_nlp
+from cpopt.runtime.budget import Budget, TimeLimitExceeded, check_time, enforced
+from cpopt.runtime.progress import Progress, reporting, stage
+from cpopt.runtime.solver import run_nlp
+from cpopt.verify.integrate import DivergenceError, integrate
 
 ROOT = Path(__file__).resolve().parent.parent
 PROBLEMS = ROOT / "problems"

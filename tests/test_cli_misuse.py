@@ -23,9 +23,9 @@ import pytest
 from conftest import PROBLEMS, ROOT, forbid
 
 from cpopt.cli import MAX_WORKERS, main, make_parser
-from cpopt.keypath import leaves
+from cpopt.io.keypath import leaves
+from cpopt.io.safe_yaml import key_path, read_yaml
 from cpopt.problem.keytypes import BOOLEAN, NUMBER, WORD, key_type
-from cpopt.safe_yaml import key_path, read_yaml
 
 BASE = PROBLEMS / "swing_up_min_torque.yaml"
 GOOD_SPEC = "motion.duration=1.5,2"

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from cpopt.collocation import collocate, joint_functions, joint_metrics, joint_trajectory, replay
-from cpopt.dynamics import arm_dynamics
-from cpopt.flat import gamma as flat_gamma
+from cpopt.model.dynamics import arm_dynamics
+from cpopt.model.flat import gamma as flat_gamma
 from cpopt.problem import ProblemError, load_problem, parse_problem
 
 ROOT = Path(__file__).resolve().parent.parent

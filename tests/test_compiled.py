@@ -8,7 +8,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cpopt import compiled
+from cpopt.closedform.plan import closed_form
+from cpopt.closedform.trajectory import sample
 from cpopt.flatopt.samples import (
     ARM_PARAMETERS,
     ParametricArm,
@@ -17,9 +18,8 @@ from cpopt.flatopt.samples import (
     sample_outputs,
     sample_values,
 )
-from cpopt.plan import closed_form
 from cpopt.problem import load_problem
-from cpopt.trajectory import sample
+from cpopt.runtime import compiled
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 

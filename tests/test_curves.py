@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from cpopt.curves import PiecewisePolynomial, hermite
+from cpopt.closedform.curves import PiecewisePolynomial, hermite
 
 
 @pytest.mark.parametrize("n", [4, 5])
@@ -40,7 +40,7 @@ def test_min_gamma_certificate_is_exact():
 
 
 def test_bspline_pieces_match_the_basis_and_end_conditions_are_local():
-    from cpopt.bspline import SplineBasis, fit
+    from cpopt.closedform.bspline import SplineBasis, fit
 
     basis = SplineBasis(8, 14)
     coeffs = np.random.default_rng(4).normal(size=(14, 2))
@@ -81,7 +81,7 @@ def test_bspline_pieces_of_a_short_far_phase_keep_their_derivatives():
     taking the derivatives of the coefficients themselves, not of their offset from their
     mean, left 4.2e-7 here, and 7e-7 on the transfer, which an open-loop replay grew to 3e-6
     rad/s), and their derivatives are those of the same motion near the origin."""
-    from cpopt.bspline import SplineBasis
+    from cpopt.closedform.bspline import SplineBasis
 
     basis = SplineBasis(8, 26)
     g = np.linspace(0.0, 1.0, 26)
@@ -98,8 +98,8 @@ def test_bspline_pieces_of_a_short_far_phase_keep_their_derivatives():
 def test_end_jets_are_set_exactly_and_the_inner_breaks_stay_smooth():
     """with_end_jets moves a curve's derivatives 0..3 at its ends to the given jets and leaves
     the inner pieces and the breaks' continuity in derivatives 0..3 as they were."""
-    from cpopt.bspline import SplineBasis
-    from cpopt.curves import with_end_jets
+    from cpopt.closedform.bspline import SplineBasis
+    from cpopt.closedform.curves import with_end_jets
 
     basis = SplineBasis(8, 14)
     coeffs = np.random.default_rng(5).normal(size=(14, 2))
@@ -124,7 +124,7 @@ def test_basis_matrices_equal_scipys_bspline(degree):
     SciPy's BSpline values and derivatives, ends and a little outside [0, 1] included."""
     from scipy.interpolate import BSpline
 
-    from cpopt.bspline import SplineBasis
+    from cpopt.closedform.bspline import SplineBasis
 
     s = np.r_[0.0, 1.0, np.linspace(0.0, 1.0, 23), np.random.default_rng(degree).random(9), -1e-3]
     for count in (degree + 1, degree + 4, degree + 17):

@@ -1,4 +1,4 @@
-"""The README and docs/problems.md run as written; public functions are documented."""
+"""The README and the documentation pages run as written; public functions are documented."""
 
 import importlib
 import inspect
@@ -13,6 +13,8 @@ import cpopt
 from cpopt.problem import parse_problem
 
 ROOT = Path(__file__).resolve().parent.parent
+PAGES = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))
+"""The documentation site's pages (the README's sections moved there run as they did)."""
 
 
 def _blocks(path: Path, lang: str) -> list[str]:
@@ -35,6 +37,13 @@ def test_yaml_examples_validate(doc):
     for block in blocks:
         # the document's own path: a URDF named in a block is relative to it
         parse_problem(yaml.safe_load(block), str(ROOT / doc))
+
+
+@pytest.mark.parametrize("doc", PAGES)
+def test_yaml_examples_of_the_pages_validate(doc):
+    for block in _blocks(ROOT / doc, "yaml"):
+        # a page's examples are written from the repository's root, as a user there types them
+        parse_problem(yaml.safe_load(block), str(ROOT / Path(doc).name))
 
 
 def test_readme_commands_name_real_things():
@@ -61,21 +70,34 @@ def _public_functions():
                             yield f"{module.__name__}.{name}.{mname}", meth
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("doc", [d for d in PAGES if _blocks(ROOT / d, "python")])
+def test_python_examples_of_the_pages_run(doc, monkeypatch, capsys):
+    monkeypatch.chdir(ROOT)
+    for code in _blocks(ROOT / doc, "python"):
+        exec(compile(code, doc, "exec"), {})
+    assert capsys.readouterr().out.split()[0] == "solved"
+
+
 def test_every_public_function_has_a_docstring():
     missing = [name for name, obj in _public_functions() if not inspect.getdoc(obj)]
     assert not missing, f"no docstring: {missing}"
 
 
 def _commands():
-    """Each command of the README's bash blocks, without the installs (CI runs the test one)."""
+    """Each command of the README's and the pages' bash blocks, once, without the installs (CI
+    runs the test one)."""
     test_command = _blocks(ROOT / "README.md", "bash")[1].strip()
-    for block in _blocks(ROOT / "README.md", "bash"):
-        if block.strip() == test_command:
-            continue
-        for part in block.strip().split("&&"):
-            part = part.strip()
-            if not part.startswith("python -m pip install"):
-                yield part
+    seen = set()
+    for doc in ["README.md", *PAGES]:
+        for block in _blocks(ROOT / doc, "bash"):
+            if block.strip() == test_command:
+                continue
+            for part in block.strip().split("&&"):
+                part = part.strip()
+                if not part.startswith("python -m pip install") and part not in seen:
+                    seen.add(part)
+                    yield part
 
 
 def _check_lines(stdout: str, word: str, pattern: str) -> None:

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from cpopt.dynamics import arm_dynamics, holding_torque, inverse_dynamics
-from cpopt.kinematics import forward_pose, kinematic_functions
-from cpopt.robot import Arm, Link, paper_arm
+from cpopt.model.dynamics import arm_dynamics, holding_torque, inverse_dynamics
+from cpopt.model.kinematics import forward_pose, kinematic_functions
+from cpopt.model.robot import Arm, Link, paper_arm
 
 ARMS = [
     paper_arm((10, 5, 1)),

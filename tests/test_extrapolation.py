@@ -5,9 +5,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cpopt.curves import PiecewisePolynomial
-from cpopt.extrapolation import extrapolated_step, integrate_along
-from cpopt.integrate import DivergenceError
+from cpopt.closedform.curves import PiecewisePolynomial
+from cpopt.verify.extrapolation import extrapolated_step, integrate_along
+from cpopt.verify.integrate import DivergenceError
 
 # two cubic pieces on [0, 1] and [1, 2.5]: p_x(t) is the first column, p_y the second
 CURVE = PiecewisePolynomial(

@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cpopt import flat
+from cpopt.model import flat
 
 K, G0 = 2.0 / 3.0, 9.81
 finite = st.floats(-3.0, 3.0)

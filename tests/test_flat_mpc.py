@@ -12,8 +12,8 @@ import yaml
 
 import cpopt
 from cpopt.cli import main
+from cpopt.io.safe_yaml import read_yaml
 from cpopt.problem import ProblemError, parse_problem
-from cpopt.safe_yaml import read_yaml
 from cpopt.tracking.mpc import MPCSettings
 
 ROOT = Path(__file__).resolve().parent.parent

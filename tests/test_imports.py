@@ -1,4 +1,5 @@
-"""The import graph of cpopt has no cycle, and no module is too long to read.
+"""The import graph of cpopt has no cycle, goes one way through the layers, and no module is too
+long to read.
 
 Every ``import`` statement counts: at module level, inside functions (imported late for speed)
 and under ``if TYPE_CHECKING:`` (a cycle a type checker sees is a cycle a reader follows too).
@@ -10,6 +11,8 @@ edge (a package's ``__init__`` re-exporting its modules would otherwise be a cyc
 from __future__ import annotations
 
 import ast
+import importlib
+import sys
 from pathlib import Path
 
 import pytest
@@ -75,11 +78,92 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
+LAYERS = (
+    ("io", ("cpopt.io",)),
+    ("runtime", ("cpopt.runtime",)),
+    ("model", ("cpopt.model",)),
+    ("urdf", ("cpopt.urdf",)),
+    ("closedform", ("cpopt.closedform",)),
+    # the per-sample functions and control laws that verification shares with the planners; they
+    # live in the planners' packages (flatopt, tracking) but import only the layers below
+    (
+        "shared laws",
+        (
+            "cpopt.flatopt.samples",
+            "cpopt.tracking.controller",
+            "cpopt.tracking.dfl",
+            "cpopt.tracking.reference",
+            "cpopt.tracking.tvlqr",
+        ),
+    ),
+    ("problem", ("cpopt.problem",)),
+    ("verify", ("cpopt.verify",)),
+    ("planners", ("cpopt.flatopt", "cpopt.collocation", "cpopt.tracking")),
+    ("application", ("cpopt",)),
+)
+"""The layers from the bottom up, each named by module prefixes (the longest prefix decides). A
+module may import its own layer and those below it, never one above."""
+
+APPLICATION = {
+    "cpopt",
+    "cpopt.__main__",
+    "cpopt.api",
+    "cpopt.cli",
+    "cpopt.isolate",
+    "cpopt.mujoco_render",
+    "cpopt.pipeline",
+    "cpopt.plotting",
+    "cpopt.replanning",
+    "cpopt.results",
+    "cpopt.solution",
+}
+"""The modules at the top level of cpopt that are not old paths kept for one release."""
+
+
+def layer(name: str) -> int:
+    """The index in :data:`LAYERS` of module ``name``'s layer."""
+    best, found = -1, None
+    for index, (_, prefixes) in enumerate(LAYERS):
+        for prefix in prefixes:
+            if (name == prefix or name.startswith(prefix + ".")) and len(prefix) > best:
+                best, found = len(prefix), index
+    assert found is not None, name
+    return found
+
+
+def moved_modules() -> dict[str, str]:
+    """Old module path -> new one, for the deprecated modules kept at the old paths."""
+    marker = "sys.modules[__name__] = importlib.import_module("
+    moved = {}
+    for path in PACKAGE.glob("*.py"):
+        text = path.read_text()
+        if marker in text:
+            moved[_module_name(path)] = text.split(marker)[1].split('"')[1]
+    return moved
+
+
+def layer_violations(graph: dict[str, set[str]], old: set[str]) -> list[str]:
+    """Each import of a module of a higher layer, or of an old path, as a sentence."""
+    wrong = []
+    for name, targets in sorted(graph.items()):
+        if name in old:
+            continue
+        for target in sorted(targets):
+            if target in old:
+                wrong.append(f"{name} imports the old path {target}")
+            elif layer(target) > layer(name):
+                wrong.append(
+                    f"{name} ({LAYERS[layer(name)][0]}) imports {target} "
+                    f"({LAYERS[layer(target)][0]})"
+                )
+    return wrong
+
+
 def test_the_graph_sees_the_imports_it_should():
     graph = import_graph()
     # module level, relative two levels up, and a submodule named by ``from pkg import name``
     assert "cpopt.problem" in graph["cpopt.flatopt.transcribe"]
-    assert "cpopt.flat" in graph["cpopt.problem.gamma"]
+    assert "cpopt.model.flat" in graph["cpopt.problem.gamma"]
     # inside a function (cli imports its stages late so that --version stays fast)
     assert "cpopt.isolate" in graph["cpopt.cli"]
 
@@ -87,6 +171,51 @@ def test_the_graph_sees_the_imports_it_should():
 def test_find_cycle_finds_one():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_layer_violations_are_found():
+    graph = {
+        "cpopt.model.flat": {"cpopt.verify.simulate"},
+        "cpopt.verify.simulate": {"cpopt.model.flat", "cpopt.flat"},
+        "cpopt.tracking.dfl": {"cpopt.closedform.plan"},
+        "cpopt.tracking.run": {"cpopt.problem"},
+        "cpopt.problem": {"cpopt.tracking.dfl", "cpopt.tracking.run"},
+        "cpopt.flat": {"cpopt.model.flat"},
+    }
+    assert layer_violations(graph, {"cpopt.flat"}) == [
+        "cpopt.model.flat (model) imports cpopt.verify.simulate (verify)",
+        "cpopt.problem (problem) imports cpopt.tracking.run (planners)",
+        "cpopt.verify.simulate imports the old path cpopt.flat",
+    ]
+
+
+def test_imports_go_one_way_through_the_layers():
+    violations = layer_violations(import_graph(), set(moved_modules()))
+    assert not violations, "\n".join(violations)
+
+
+def test_the_top_level_holds_the_application_and_old_paths_only():
+    top = {
+        name
+        for name in _modules()
+        if name.count(".") <= 1 and not (PACKAGE / name.split(".")[-1]).is_dir()
+    }
+    assert top - set(moved_modules()) == APPLICATION
+
+
+@pytest.mark.parametrize("package", ["io", "runtime", "model", "closedform", "verify"])
+def test_each_layer_package_says_what_it_owns_and_may_import(package):
+    doc = importlib.import_module(f"cpopt.{package}").__doc__
+    assert doc and "import" in doc
+
+
+@pytest.mark.parametrize("old", sorted(moved_modules()))
+def test_an_old_path_warns_and_is_the_new_module(old):
+    new = moved_modules()[old]
+    sys.modules.pop(old, None)  # imported as if for the first time: the old path warns again
+    with pytest.warns(DeprecationWarning, match=f"{old} moved to {new}"):
+        module = importlib.import_module(old)
+    assert module is importlib.import_module(new)
 
 
 def test_no_import_cycle_in_cpopt():

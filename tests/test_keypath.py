@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from cpopt.keypath import KeyPathError, check_disjoint, get_value, parse_key_path, with_values
+from cpopt.io.keypath import KeyPathError, check_disjoint, get_value, parse_key_path, with_values
 from cpopt.problem.keytypes import BOOLEAN, NUMBER, WORD, KeyType, key_type
 
 DATA = {"arm": {"links": [{"mass": 1.0}, {"mass": 2.0}, {"mass": 3.0}]}, "motion": {"T": 1}}

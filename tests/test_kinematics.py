@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from cpopt.kinematics import (
+from cpopt.model.kinematics import (
     BRANCH_MARGIN,
     ReachError,
     branch_margin,
@@ -12,7 +12,7 @@ from cpopt.kinematics import (
     inverse_position,
     kinematic_functions,
 )
-from cpopt.robot import Arm, Link
+from cpopt.model.robot import Arm, Link
 
 ARMS = {
     ("RRR", "elbow_up"): Arm(

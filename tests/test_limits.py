@@ -1,4 +1,4 @@
-"""The arm's limits, defined once (cpopt.limits), checked on the plan of every planner."""
+"""The arm's limits, defined once (cpopt.model.limits), checked on the plan of every planner."""
 
 import json
 import textwrap
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from cpopt.cli import main
-from cpopt.limits import Limit, arm_limits, violations
+from cpopt.model.limits import Limit, arm_limits, violations
+from cpopt.model.robot import paper_arm
 from cpopt.problem import LimitsSpec, ProblemError, load_problem, read_problem
-from cpopt.robot import paper_arm
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 

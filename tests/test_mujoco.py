@@ -17,10 +17,10 @@ import pytest
 from conftest import PROBLEMS
 
 import cpopt
-from cpopt.dynamics import arm_dynamics
-from cpopt.mujoco_arm import MAX_TIMESTEP, arm_model, arm_state, mass_matrix, steps_per_period
+from cpopt.model.dynamics import arm_dynamics
+from cpopt.model.mujoco_arm import MAX_TIMESTEP, arm_model, arm_state, mass_matrix, steps_per_period
+from cpopt.model.robot import Link
 from cpopt.problem import ProblemError, load_problem
-from cpopt.robot import Link
 from cpopt.tracking import Noise, Plant, track
 
 KINDS = {

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from cpopt.cli import main
+from cpopt.closedform.trajectory import sample
 from cpopt.flatopt import optimize
 from cpopt.flatopt.transcribe import build
-from cpopt.objectives import default_hessian
+from cpopt.model.objectives import default_hessian
 from cpopt.pipeline import solve
 from cpopt.problem import load_problem, parse_problem
-from cpopt.trajectory import sample
 
 HERE = Path(__file__).resolve().parent
 PROBLEMS = HERE.parent / "problems"
@@ -163,8 +163,8 @@ def test_quadrature_check_refines_pieces_that_alias(monkeypatch):
     """The benchmark swing-up with 4 points per inner piece: the quadrature of two pieces
     misses the fine integral by more than 1e-3 of it; they get twice the points."""
     import cpopt.flatopt as flatopt
+    from cpopt.closedform.trajectory import metrics
     from cpopt.flatopt.refine import QUADRATURE_TOL, quadrature_gaps
-    from cpopt.trajectory import metrics
 
     data = load_problem(HERE.parent / "benchmarks/problems/swing_up.yaml").spec.model_dump()
     data["optimizer"]["samples"] = 40  # (12, 4, 4, 4, 4, 12) points on its 6 pieces
@@ -203,7 +203,7 @@ def test_free_via_state_improves_on_the_paper_horizontal_rest(optimized):
 
 def test_singular_closed_form_is_rescued_by_the_fallback_warm_start(optimized):
     """x_s = x_g in one phase makes the closed form hit gamma = 0 (the paper's remark)."""
-    from cpopt.plan import SingularPlanError, closed_form
+    from cpopt.closedform.plan import SingularPlanError, closed_form
 
     problem = load_problem(PROBLEMS / "swing_up_one_phase.yaml")
     with pytest.raises(SingularPlanError):
@@ -280,8 +280,8 @@ def test_path_timing_swing_up_passes_the_rest_via_along_its_acceleration(optimiz
     """At the horizontal rest via state the CP's first nonzero derivative is y'' = (xi, -g0):
     the first path arrives against it, the second leaves along it, and the jerk (eta, 0) must
     lie along it too, which pins eta and eta_after at 0 (docs/problems.md)."""
-    from cpopt import flat
-    from cpopt.paths import cross
+    from cpopt.closedform.paths import cross
+    from cpopt.model import flat
 
     sol = optimized["swing_up_path_timing"]
     plan, arm = sol.plan, sol.plan.arm
@@ -299,7 +299,7 @@ def test_path_timing_swing_up_passes_the_rest_via_along_its_acceleration(optimiz
         got = plan.phases[k].curve.derivatives(np.array([via.t]), 3)[0]
         assert got == pytest.approx(flat.output(via.state(after), arm.K, arm.gravity), abs=1e-8)
     # and a low-order path wanders less than the free B-splines (benchmarks/path_timing.py)
-    from cpopt.paths import wandering
+    from cpopt.closedform.paths import wandering
 
     ratios = [
         wandering(sample(optimized[n].plan, per_phase=1001).cp[:, :, 0])[0]

@@ -11,7 +11,7 @@ import pytest
 from test_cli import GOOD
 
 from cpopt.cli import main
-from cpopt.output import atomic_path, atomic_write
+from cpopt.io.output import atomic_path, atomic_write
 from cpopt.results import Solution, write_solution
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from cpopt.plan import Node, SingularPlanError, closed_form
-from cpopt.robot import paper_arm
-from cpopt.trajectory import metrics, sample, torque_jumps
+from cpopt.closedform.plan import Node, SingularPlanError, closed_form
+from cpopt.closedform.trajectory import metrics, sample, torque_jumps
+from cpopt.model.robot import paper_arm
 
 # Measured with `cpopt solve problems/paper_*.yaml`; a change that moves them is a regression.
 PINNED = {
@@ -107,7 +107,7 @@ def test_eta_reset_at_via_state_is_verified():
     ]
     plan = closed_form(arm, nodes)
     from cpopt.pipeline import evaluate
-    from cpopt.solver import SolverStats
+    from cpopt.runtime.solver import SolverStats
 
     sol = evaluate(plan, "reset", SolverStats())
     assert sol.status == "solved"
@@ -123,7 +123,7 @@ def xi_reset_solution():
     """Hanging rest (gamma = -g0) to inverted rest (gamma = +g0), both at the holding torque:
     xi jumps from -10 to +10 m/s^2 at the horizontal via state and gamma with it."""
     from cpopt.pipeline import evaluate
-    from cpopt.solver import SolverStats
+    from cpopt.runtime.solver import SolverStats
 
     arm = paper_arm((1, 1, 0.5))
     d = np.radians
@@ -206,7 +206,7 @@ def test_gamma_sign_change_between_nodes_is_refused():
 
 
 def test_feedback_is_needed_under_a_perturbation(paper_solutions):
-    from cpopt.simulate import simulate_closed_loop, simulate_open_loop
+    from cpopt.verify.simulate import simulate_closed_loop, simulate_open_loop
 
     plan = paper_solutions["paper_transfer"].plan
     closed = simulate_closed_loop(plan, q_error=(0, 0, 0.01))

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import yaml
 
-from cpopt import flat
-from cpopt.bspline import SplineBasis
 from cpopt.cli import main
+from cpopt.closedform.bspline import SplineBasis
+from cpopt.closedform.trajectory import sample
+from cpopt.model import flat
 from cpopt.pipeline import solve
 from cpopt.problem import ProblemError, load_problem, parse_problem
-from cpopt.trajectory import sample
 
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
 CP_HEIGHT = 1.0 + 2.0 / 3.0  # the transfer's CP: y + K with K = 2 l3 / 3 = 2/3 m
@@ -195,8 +195,8 @@ def test_freed_fields_after_a_via_state_follow_its_resets():
     """After a via state, xi and eta are the values after its resets where it has them, and
     the values on arrival where it has none (found by review: a freed xi_after was taken for a
     fixed value, and a freed xi counted after a fixed reset)."""
-    from cpopt.nodes import freed_fields
-    from cpopt.plan import Node
+    from cpopt.closedform.nodes import freed_fields
+    from cpopt.closedform.plan import Node
 
     still = dict(t=1.0, x=0.75, y=1.0, theta=0.0, xdot=0.0, ydot=0.0, thetadot=0.0, eta=0.0)
     reset = Node(**still, xi=-12.0, xi_after=0.0)

@@ -4,8 +4,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cpopt.bspline import SplineBasis
-from cpopt.paths import (
+from cpopt.closedform.bspline import SplineBasis
+from cpopt.closedform.paths import (
     PathShape,
     chain_rule,
     compose,

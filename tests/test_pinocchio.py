@@ -15,7 +15,7 @@ import pytest
 from conftest import PROBLEMS
 
 import cpopt
-from cpopt.dynamics import arm_dynamics
+from cpopt.model.dynamics import arm_dynamics
 from cpopt.problem import bundled_problems, load_problem
 from cpopt.urdf import read_urdf, urdf_arm
 

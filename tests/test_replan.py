@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import cpopt
+from cpopt.closedform.trajectory import sample, sample_at
 from cpopt.flatopt.remaining_motion import NEAR_NODE, remaining
-from cpopt.simulate import simulate_open_loop
-from cpopt.trajectory import sample, sample_at
+from cpopt.verify.simulate import simulate_open_loop
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -13,8 +13,8 @@ import pytest
 from test_cli import GOOD
 
 from cpopt.cli import main
+from cpopt.io.safe_yaml import MAX_BYTES, YamlInputError, parse_yaml
 from cpopt.problem import load_problem
-from cpopt.safe_yaml import MAX_BYTES, YamlInputError, parse_yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 

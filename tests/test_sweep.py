@@ -18,10 +18,10 @@ import yaml
 from conftest import PROBLEMS, ROOT
 
 from cpopt.cli import main
-from cpopt.keypath import with_values
+from cpopt.io.keypath import with_values
+from cpopt.io.safe_yaml import read_yaml
 from cpopt.pipeline import solve
 from cpopt.problem import parse_problem
-from cpopt.safe_yaml import read_yaml
 from cpopt.sweep.bar import SweepBar, clock
 from cpopt.sweep.plot import cost_column, write_plot
 from cpopt.sweep.spec import SweepError, Vary, build_points, parse_spec, parse_vary, point_names

@@ -19,7 +19,7 @@ from cpopt.flatopt.switching import (
     with_switches,
 )
 from cpopt.problem import load_problem, parse_problem
-from cpopt.simulate import simulate_open_loop
+from cpopt.verify.simulate import simulate_open_loop
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -110,11 +110,11 @@ def test_the_polish_is_skipped_only_near_the_seeds_cost(transfer, transfer_seed)
 
 def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_seed):
     """The warm start's CP follows the seed's, and its gamma has each phase's sign."""
+    from cpopt.closedform.trajectory import sample
     from cpopt.flatopt import plan_from
     from cpopt.flatopt.seed import seeded_values
     from cpopt.flatopt.transcribe import build
     from cpopt.flatopt.warm_start import seeded_guess
-    from cpopt.trajectory import sample
 
     pattern = seed_pattern(transfer, transfer_seed, 6)
     problem, switches = with_switches(transfer, pattern.times, free_times=False)

@@ -14,10 +14,10 @@ import yaml
 from scipy.integrate import solve_ivp
 
 from cpopt.cli import main
-from cpopt.dynamics import arm_dynamics
-from cpopt.plan import closed_form
+from cpopt.closedform.plan import closed_form
+from cpopt.model.dynamics import arm_dynamics
+from cpopt.model.robot import Link
 from cpopt.problem import ProblemError, load_problem, parse_problem
-from cpopt.robot import Link
 from cpopt.tracking import CSV_COLUMNS, Noise, Plant, track
 from cpopt.tracking.dfl import SingularTrackingError
 from cpopt.tracking.plant import PARAMETER_NAMES, plant_period
@@ -142,9 +142,9 @@ def test_a_batch_runs_each_plant_as_if_alone(transfer):
 def test_the_compiled_step_is_cached_on_disk_and_runs_as_the_interpreted(
     transfer, tmp_path, monkeypatch
 ):
-    """jit: the period function compiled once through cpopt.compiled's cache (named by the
+    """jit: the period function compiled once through cpopt.runtime.compiled's cache (named by the
     function itself), found again without building, and the same runs as interpreted."""
-    from cpopt import compiled
+    from cpopt.runtime import compiled
     from cpopt.tracking import simulation
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))

@@ -337,7 +337,7 @@ def test_a_sweep_over_a_urdf_problem_finds_the_file_from_any_folder(tmp_path, mo
 def test_any_base_centre_of_mass_and_inertia_survive_the_round_trip(kind):
     from dataclasses import replace
 
-    from cpopt.robot import Link
+    from cpopt.model.robot import Link
 
     arm = load_problem(PROBLEMS / f"{KINDS[kind]}.yaml").arm
     links = (Link(1.3, 2.5, 0.4, 0.21), Link(0.9, 1.5, 0.7, 0.08), Link(0.8, 0.4, 0.35, 0.011))

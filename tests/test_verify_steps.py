@@ -7,12 +7,12 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from cpopt.dynamics import arm_dynamics
-from cpopt.extrapolation import extrapolated_step
 from cpopt.flatopt.samples import TAU, arm_vector, sample_library
+from cpopt.model.dynamics import arm_dynamics
 from cpopt.problem import load_problem
 from cpopt.tracking.dfl import dfl_law, pole_placement_gains
-from cpopt.verify_steps import (
+from cpopt.verify.extrapolation import extrapolated_step
+from cpopt.verify.verify_steps import (
     closed_loop_rhs,
     jet,
     library_degree,

@@ -25,9 +25,9 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..budget import check_stop
 from ..problem import Problem
-from ..solver import SolverStats, read_stats
+from ..runtime.budget import check_stop
+from ..runtime.solver import SolverStats, read_stats
 from .joint_plan import (
     REFINE,
     JointPlan,

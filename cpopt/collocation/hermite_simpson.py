@@ -25,15 +25,15 @@ import time
 import casadi as ca
 import numpy as np
 
-from ..budget import check_stop
-from ..dynamics import rk4_step, state_derivative
-from ..kinematics import BRANCH_MARGIN, branch_margin, kinematic_functions
-from ..nodes import node_names
-from ..objectives import weights
-from ..plan import Node
+from ..closedform.nodes import node_names
+from ..closedform.plan import Node
+from ..model.dynamics import rk4_step, state_derivative
+from ..model.kinematics import BRANCH_MARGIN, branch_margin, kinematic_functions
+from ..model.objectives import weights
 from ..problem import Problem
-from ..simulate import pose_states
-from ..solver import SolverStats, ipopt_options, read_stats
+from ..runtime.budget import check_stop
+from ..runtime.solver import SolverStats, ipopt_options, read_stats
+from ..verify.simulate import pose_states
 from .joint_plan import JointPlan, joint_functions
 from .transcribe import NODE_FIELDS, cold_guess, warm_guess
 

@@ -10,14 +10,14 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from ..dynamics import arm_dynamics, holding_torque
-from ..integrate import integrate
-from ..kinematics import kinematic_functions
-from ..mapping import mapped
-from ..plan import Node
-from ..robot import Arm
-from ..simulate import SimulationResult, cp_of, goal_error, pose_states
-from ..trajectory import Metrics, Trajectory, checked_times, gamma_crossings
+from ..closedform.plan import Node
+from ..closedform.trajectory import Metrics, Trajectory, checked_times, gamma_crossings
+from ..model.dynamics import arm_dynamics, holding_torque
+from ..model.kinematics import kinematic_functions
+from ..model.mapping import mapped
+from ..model.robot import Arm
+from ..verify.integrate import integrate
+from ..verify.simulate import SimulationResult, cp_of, goal_error, pose_states
 
 REFINE = 8
 """Samples per interval of the collocation polynomials in the trajectory."""

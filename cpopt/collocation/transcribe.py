@@ -9,16 +9,17 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .. import flat, progress
-from ..dynamics import holding_torque
-from ..kinematics import branch_margin, joint_state, kinematic_functions
-from ..nodes import MIN_PHASE, node_names
-from ..objectives import squared_norm, weights
-from ..plan import Node
+from ..closedform.nodes import MIN_PHASE, node_names
+from ..closedform.plan import Node
+from ..closedform.trajectory import sample
+from ..model import flat
+from ..model.dynamics import holding_torque
+from ..model.kinematics import branch_margin, joint_state, kinematic_functions
+from ..model.objectives import squared_norm, weights
 from ..problem import Problem
-from ..simulate import pose_states
-from ..solver import fatrop_options, ipopt_options
-from ..trajectory import sample
+from ..runtime import progress
+from ..runtime.solver import fatrop_options, ipopt_options
+from ..verify.simulate import pose_states
 from .joint_plan import REFINE, JointPlan, joint_functions
 
 RUN_LABEL = "direct collocation"

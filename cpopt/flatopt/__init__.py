@@ -24,15 +24,16 @@ from functools import partial
 
 import numpy as np
 
-from .. import flat, progress
-from ..budget import remaining
-from ..curves import with_end_jets
-from ..nodes import node_names, nodes_from_values, to_file
-from ..objectives import weights
-from ..plan import CPPlan, Phase
+from ..closedform.curves import with_end_jets
+from ..closedform.nodes import node_names, nodes_from_values, to_file
+from ..closedform.plan import CPPlan, Phase
+from ..closedform.trajectory import Trajectory
+from ..model import flat
+from ..model.objectives import weights
 from ..problem import Problem
-from ..solver import SolverStats, run_nlp
-from ..trajectory import Trajectory
+from ..runtime import progress
+from ..runtime.budget import remaining
+from ..runtime.solver import SolverStats, run_nlp
 from . import switching
 from .path_timing import chosen_points
 from .refine import (

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from ..robot import Arm
+from ..model.robot import Arm
 from .samples import NY, arm_vector, sample_library
 
 CURVATURE = ("all", "none")

@@ -29,11 +29,10 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from .. import flat
-from ..bspline import SplineBasis
-from ..curves import hermite
-from ..nodes import freed_fields, node_names
-from ..paths import (
+from ..closedform.bspline import SplineBasis
+from ..closedform.curves import hermite
+from ..closedform.nodes import freed_fields, node_names
+from ..closedform.paths import (
     ORDERS,
     ZERO,
     PathShape,
@@ -43,6 +42,7 @@ from ..paths import (
     order_fields,
     path_jet,
 )
+from ..model import flat
 from .constraints import Constraints
 from .layout import Layout
 

@@ -14,12 +14,12 @@ from itertools import pairwise
 
 import numpy as np
 
-from ..kinematics import ReachError
-from ..limits import sampled
-from ..objectives import abs_power, squared_norm, weights
-from ..plan import CPPlan
+from ..closedform.plan import CPPlan
+from ..closedform.trajectory import sample
+from ..model.kinematics import ReachError
+from ..model.limits import sampled
+from ..model.objectives import abs_power, squared_norm, weights
 from ..problem import Problem
-from ..trajectory import sample
 from .quadrature import fine_rule
 from .samples import QD, TAU, sample_values
 from .transcribe import FlatNLP

@@ -18,10 +18,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..curves import PiecewisePolynomial
-from ..kinematics import forward_pose, kinematic_functions
-from ..nodes import node_names
-from ..plan import CPPlan, Node, Phase
+from ..closedform.curves import PiecewisePolynomial
+from ..closedform.nodes import node_names
+from ..closedform.plan import CPPlan, Node, Phase
+from ..model.kinematics import forward_pose, kinematic_functions
 from ..problem import Problem
 from .switching import with_switches
 
@@ -69,7 +69,7 @@ def measured_state(arm, q, qd) -> np.ndarray:
 def plan_state_at(plan: CPPlan, t: float) -> np.ndarray:
     """The plan's extended state z (8,) at time t [s] (right limit at a node; theta as the flat
     map gives it, maybe 2 pi off the plan's branch: only xi and eta are used)."""
-    from ..trajectory import flat_states
+    from ..closedform.trajectory import flat_states
 
     starts = np.array([ph.curve.t0 for ph in plan.phases])
     phase = np.clip(np.searchsorted(starts, [t], side="right") - 1, 0, len(plan.phases) - 1)

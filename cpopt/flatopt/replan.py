@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..plan import CPPlan
+from ..closedform.plan import CPPlan
+from ..closedform.trajectory import Trajectory, sample
 from ..problem import Problem
-from ..solver import run_nlp
-from ..trajectory import Trajectory, sample
+from ..runtime.solver import run_nlp
 from .remaining_motion import Remaining, remaining, shifted
 from .transcribe import build, initial_grids
 from .warm_start import initial_guess, seeded_guess
@@ -129,7 +129,7 @@ def with_replan_settings(problem: Problem, torque_limit=None) -> Problem:
     the problem's)."""
     from dataclasses import replace
 
-    from ..limits import arm_limits
+    from ..model.limits import arm_limits
 
     o = problem.spec.optimizer
     update = {"solver": o.solver.model_copy(update=SOLVER_SETTINGS)}

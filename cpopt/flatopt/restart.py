@@ -20,9 +20,9 @@ import time
 
 import numpy as np
 
-from ..plan import CPPlan
+from ..closedform.plan import CPPlan
+from ..closedform.trajectory import Trajectory, sample
 from ..problem import MAX_SWITCHES, Problem
-from ..trajectory import Trajectory, sample
 from .seeded import Stage, solve_pattern
 from .switching import Pattern, Search, Solve, agreeing, gamma_signs_on_grid, within_budget
 

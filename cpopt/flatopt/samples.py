@@ -26,10 +26,11 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .. import compiled, dynamics, flat, kinematics
-from ..dynamics import SymbolicLink, lagrangian
-from ..kinematics import inverse_position_symbolic, link_geometry, reach_margin
-from ..robot import Arm
+from ..model import dynamics, flat, kinematics
+from ..model.dynamics import SymbolicLink, lagrangian
+from ..model.kinematics import inverse_position_symbolic, link_geometry, reach_margin
+from ..model.robot import Arm
+from ..runtime import compiled
 
 ARM_PARAMETERS = (
     "l1", "l2", "l3", "m1", "m2", "m3", "d1", "d2", "d3", "I1", "I2", "I3",

@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..budget import check_time
-from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..closedform.nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..closedform.trajectory import Trajectory, gamma_crossings
 from ..problem import Problem
-from ..trajectory import Trajectory, gamma_crossings
+from ..runtime.budget import check_time
 from .transcribe import GAMMA_SAFETY, holding_pattern
 
 SEED_INTERVALS = 30

@@ -43,10 +43,10 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from .. import progress
-from ..nodes import MIN_PHASE
+from ..closedform.nodes import MIN_PHASE
+from ..closedform.trajectory import sample
 from ..problem import MAX_SWITCHES, Problem
-from ..trajectory import sample
+from ..runtime import progress
 from .seed import Seed, coarse_seed, patterned_seed
 from .switching import (
     DOMINATED_EARLIEST,

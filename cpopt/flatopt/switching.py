@@ -26,8 +26,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
-from ..plan import Node
+from ..closedform.nodes import MIN_PHASE, NODE_FIELDS, node_names
+from ..closedform.plan import Node
 from ..problem import MAX_SWITCHES, Problem
 from .seed import Seed, coarse_seed
 

@@ -34,13 +34,13 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from .. import flat
-from ..bspline import SplineBasis
-from ..limits import Limit
-from ..nodes import MIN_PHASE, NODE_FIELDS, has_reset, node_names
-from ..objectives import default_hessian, squared_norm, weights
+from ..closedform.bspline import SplineBasis
+from ..closedform.nodes import MIN_PHASE, NODE_FIELDS, has_reset, node_names
+from ..model import flat
+from ..model.limits import Limit
+from ..model.objectives import default_hessian, squared_norm, weights
 from ..problem import Problem
-from ..solver import IterationReporter, ipopt_options
+from ..runtime.solver import IterationReporter, ipopt_options
 from . import path_timing
 from .assemble import SampleBlock, assemble
 from .constraints import Constraints

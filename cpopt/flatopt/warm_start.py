@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import flat
-from ..bspline import SplineBasis, fit
-from ..nodes import has_reset, node_names, nodes_from_values
-from ..plan import CPPlan, SingularPlanError, closed_form
+from ..closedform.bspline import SplineBasis, fit
+from ..closedform.nodes import has_reset, node_names, nodes_from_values
+from ..closedform.plan import CPPlan, SingularPlanError, closed_form
+from ..closedform.trajectory import Trajectory
+from ..model import flat
 from ..problem import Problem
-from ..trajectory import Trajectory
 from .path_timing import initial_blocks, timing_guess, unpack
 from .seed import PUSH, SIDE, seeded_values
 from .transcribe import FlatNLP, coefficient_count

@@ -10,7 +10,7 @@ Modules: :mod:`~cpopt.problem.schema` (the pydantic models), :mod:`~cpopt.proble
 paths) and :mod:`~cpopt.problem.build` (:class:`Problem` from data or a file).
 """
 
-from ..robot import ARM_KINDS
+from ..model.robot import ARM_KINDS
 from .build import Problem, bundled_problems, load_problem, parse_problem, read_problem
 from .gamma import GammaSide, gamma_segments, gamma_sides
 from .messages import REMOVED_KEYS

@@ -11,12 +11,12 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from ..keypath import KeyPathError, with_values
-from ..limits import Limit, arm_limits
-from ..nodes import node_names, node_values, si_bounds
-from ..plan import Node
-from ..robot import Arm
-from ..safe_yaml import YamlInputError, echo, read_yaml
+from ..closedform.nodes import node_names, node_values, si_bounds
+from ..closedform.plan import Node
+from ..io.keypath import KeyPathError, with_values
+from ..io.safe_yaml import YamlInputError, echo, read_yaml
+from ..model.limits import Limit, arm_limits
+from ..model.robot import Arm
 from ..urdf import arm_urdf
 from .gamma import GammaSide, gamma_sides
 from .messages import check_removed_keys, describe_error
@@ -42,8 +42,8 @@ class Problem:
     spec : ProblemSpec
         The validated file content (planner and optimizer settings).
     free : dict of str to (float, float)
-        The values the optimizer may choose, by name (:mod:`cpopt.nodes`), with their bounds in
-        SI units (+-inf for none).
+        The values the optimizer may choose, by name (:mod:`cpopt.closedform.nodes`), with
+        their bounds in SI units (+-inf for none).
     limits : tuple of Limit
         The arm's limits in SI units (``optimizer.limits``).
     data : dict
@@ -205,7 +205,7 @@ def parse_problem(data, source: str = "<python>", name: str | None = None) -> Pr
 
 
 def overridden(data: dict, overrides: dict, source: str) -> dict:
-    """A copy of problem data with values set by key path (:func:`cpopt.keypath.with_values`).
+    """A copy of problem data with values set by key path (:func:`cpopt.io.keypath.with_values`).
 
     Raises
     ------
@@ -249,7 +249,7 @@ def read_problem(source: str | Path | dict, overrides: dict | None = None) -> Pr
 
 
 def load_problem(path: str | Path) -> Problem:
-    """Read and validate a YAML problem file (see :mod:`cpopt.safe_yaml` for the limits).
+    """Read and validate a YAML problem file (see :mod:`cpopt.io.safe_yaml` for the limits).
 
     Raises
     ------

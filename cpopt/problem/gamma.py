@@ -6,10 +6,10 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-from .. import flat
-from ..nodes import gamma_is_free, has_reset
-from ..plan import GAMMA_ZERO
-from ..robot import G0, Arm
+from ..closedform.nodes import gamma_is_free, has_reset
+from ..closedform.plan import GAMMA_ZERO
+from ..model import flat
+from ..model.robot import G0, Arm
 from .schema import OptimizerSpec, ProblemError
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from pydantic import BaseModel
 
-from ..keypath import parse_key_path
+from ..io.keypath import parse_key_path
 from .schema import ProblemSpec
 
 NUMBER, BOOLEAN, WORD = "number", "boolean", "word"

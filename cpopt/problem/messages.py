@@ -9,7 +9,7 @@ import typing
 
 from pydantic import BaseModel
 
-from ..safe_yaml import echo, key_path
+from ..io.safe_yaml import echo, key_path
 from .schema import UNION_TAGS, ProblemError, ProblemSpec
 
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import flat
-from ..nodes import freed_fields, node_names
-from ..paths import PathShape, node_mismatch, order_fields
-from ..plan import Node
-from ..robot import Arm
+from ..closedform.nodes import freed_fields, node_names
+from ..closedform.paths import PathShape, node_mismatch, order_fields
+from ..closedform.plan import Node
+from ..model import flat
+from ..model.robot import Arm
 from .messages import interval
 from .schema import FreePointSpec, PathSpec, ProblemError, ProblemSpec
 

@@ -22,7 +22,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from ..objectives import OBJECTIVES
+from ..model.objectives import OBJECTIVES
 from ..tracking.dfl import DEFAULT_POLES
 from ..tracking.tvlqr import DEFAULT_Q, DEFAULT_QF
 
@@ -159,7 +159,7 @@ DEFAULT_MAX_TIME = 300.0
 
 class SolverSpec(_Spec):
     """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]; ``hessian`` None
-    means the objective's default (:func:`cpopt.objectives.default_hessian`)."""
+    means the objective's default (:func:`cpopt.model.objectives.default_hessian`)."""
 
     max_iter: Annotated[int, WHOLE, Field(gt=0)] = 1000
     tol: Positive = 1e-8

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from ..safe_yaml import echo
+from ..io.safe_yaml import echo
 from ..urdf import UrdfError, read_urdf, urdf_arm
 from .messages import describe_error
 from .schema import ProblemError, UrdfArmSpec

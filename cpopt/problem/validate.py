@@ -8,15 +8,15 @@ import math
 
 import numpy as np
 
-from ..dynamics import holding_torque
-from ..keypath import leaves
-from ..kinematics import ReachError, inverse_derivatives, inverse_position
-from ..limits import torque_headroom
-from ..nodes import free_value_names
-from ..objectives import COLLOCATION_OBJECTIVES, LEAST_SQUARES, LINEAR, weights
-from ..plan import GAMMA_ZERO, Node
-from ..robot import BRANCHES, Arm, Link
-from ..safe_yaml import echo, key_path
+from ..closedform.nodes import free_value_names
+from ..closedform.plan import GAMMA_ZERO, Node
+from ..io.keypath import leaves
+from ..io.safe_yaml import echo, key_path
+from ..model.dynamics import holding_torque
+from ..model.kinematics import ReachError, inverse_derivatives, inverse_position
+from ..model.limits import torque_headroom
+from ..model.objectives import COLLOCATION_OBJECTIVES, LEAST_SQUARES, LINEAR, weights
+from ..model.robot import BRANCHES, Arm, Link
 from .gamma import check_gamma, check_signs
 from .messages import interval, suggestion
 from .path_checks import check_paths

@@ -11,7 +11,7 @@ import re
 import socket
 from dataclasses import dataclass
 
-from ..safe_yaml import echo
+from ..io.safe_yaml import echo
 from .spec import SweepError
 
 SCHEDULER_TIMEOUT = 5.0

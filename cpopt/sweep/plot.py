@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..output import atomic_path
+from ..io.output import atomic_path
 
 
 def _number(text) -> float:

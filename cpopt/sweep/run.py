@@ -15,7 +15,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..output import OutputError, check_directory, check_problem_directory, make_directory
+from ..io.output import OutputError, check_directory, check_problem_directory, make_directory
 from .address import check_scheduler, parse_scheduler
 from .bar import SweepBar
 from .spec import Point, SweepError, build_points, parse_vary

@@ -10,7 +10,7 @@
   seeded with ``seed`` (the same values on every machine and run).
 
 Several ``--vary`` make the full grid, the first one outermost. Every point is the base file's
-data with the values set (:func:`cpopt.keypath.with_values`) and is validated like a problem
+data with the values set (:func:`cpopt.io.keypath.with_values`) and is validated like a problem
 file before any work starts.
 """
 
@@ -26,11 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..keypath import KeyPathError, check_disjoint, parse_key_path, with_values
+from ..io.keypath import KeyPathError, check_disjoint, parse_key_path, with_values
+from ..io.safe_yaml import YamlInputError, echo, parse_yaml, read_yaml
 from ..problem import NAME, ProblemError, parse_problem, safe_name
 from ..problem.keytypes import BOOLEAN, NUMBER, WORD, KeyType, key_type
 from ..problem.urdf_arm import absolute_urdf
-from ..safe_yaml import YamlInputError, echo, parse_yaml, read_yaml
 
 MAX_POINTS = 100_000
 """Most points of one sweep (a typo like ``0:1:1e9`` is refused before any work)."""

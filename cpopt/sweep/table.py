@@ -17,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from ..output import OUTPUT_FILES, atomic_write, clear, locked, make_directory
+from ..io.output import OUTPUT_FILES, atomic_write, clear, locked, make_directory
 from ..results import STATUSES, json_safe, write_solution
 from .spec import Point
 from .task import Outcome

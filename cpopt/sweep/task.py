@@ -2,7 +2,7 @@
 
 No CasADi object crosses the wire: the task receives the point's problem data (a dict), builds
 the problem and its solver inside the worker (the compiled-function cache of
-:mod:`cpopt.compiled` is the worker machine's own) and sends back the
+:mod:`cpopt.runtime.compiled` is the worker machine's own) and sends back the
 :class:`~cpopt.results.Solution`, which the client writes as ``cpopt solve`` would.
 """
 

@@ -18,10 +18,10 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .. import flat
-from ..dynamics import arm_dynamics, tracking_acceleration
-from ..kinematics import link_geometry
-from ..robot import Arm
+from ..model import flat
+from ..model.dynamics import arm_dynamics, tracking_acceleration
+from ..model.kinematics import link_geometry
+from ..model.robot import Arm
 from .controller import Controller
 from .reference import Reference
 

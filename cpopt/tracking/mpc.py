@@ -27,9 +27,9 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from ..closedform.trajectory import sample
 from ..flatopt.replan import Replan, replan
-from ..kinematics import ReachError
-from ..trajectory import sample
+from ..model.kinematics import ReachError
 from .outcome import Tolerance, TrackingOutcome, cp_points, final_errors
 from .plant import Plant
 from .reference import reference

@@ -18,8 +18,8 @@ import contextlib
 import casadi as ca
 import numpy as np
 
-from ..kinematics import kinematic_functions
-from ..mujoco_arm import arm_model, arm_state, require_mujoco, steps_per_period
+from ..model.kinematics import kinematic_functions
+from ..model.mujoco_arm import arm_model, arm_state, require_mujoco, steps_per_period
 from .controller import Controller
 from .plant import COULOMB_VELOCITY_SCALE, NO_LIMIT, Plant
 from .simulation import DIVERGED_CP, DIVERGED_VELOCITY, Batch, Noise, plan_cp_at

@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kinematics import joint_state, kinematic_functions
-from ..mapping import mapped
-from ..plan import Node
-from ..robot import Arm
+from ..closedform.plan import Node
+from ..model.kinematics import joint_state, kinematic_functions
+from ..model.mapping import mapped
+from ..model.robot import Arm
 
 CSV_COLUMNS = (
     "t", "q1", "q2", "q3", "q1dot", "q2dot", "q3dot", "q1ddot", "q2ddot", "q3ddot", "tau1",

@@ -23,8 +23,8 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from ..dynamics import SymbolicLink, lagrangian
-from ..robot import Arm, Link
+from ..model.dynamics import SymbolicLink, lagrangian
+from ..model.robot import Arm, Link
 
 COULOMB_VELOCITY_SCALE = 0.01
 """Velocity [rad/s or m/s] at which the smoothed Coulomb friction reaches tanh(1) = 76 % of

@@ -24,13 +24,13 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from .. import flat
-from ..dynamics import arm_dynamics, inverse_dynamics, rk4_step
-from ..kinematics import inverse_derivatives, inverse_position, kinematic_functions
-from ..mapping import mapped
-from ..plan import GAMMA_ZERO, CPPlan, Node
-from ..robot import Arm
-from ..trajectory import flat_states
+from ..closedform.plan import GAMMA_ZERO, CPPlan, Node
+from ..closedform.trajectory import flat_states
+from ..model import flat
+from ..model.dynamics import arm_dynamics, inverse_dynamics, rk4_step
+from ..model.kinematics import inverse_derivatives, inverse_position, kinematic_functions
+from ..model.mapping import mapped
+from ..model.robot import Arm
 
 GAUSS = np.polynomial.legendre.leggauss(3)
 """Gauss-Legendre nodes and weights on [-1, 1] for the period means of a flat plan's torque."""

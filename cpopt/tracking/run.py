@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..robot import Arm
+from ..model.robot import Arm
 from .controller import Controller
 from .dfl import DEFAULT_POLES, DFLController, SingularTrackingError
 from .outcome import Tolerance, TrackingOutcome, final_errors

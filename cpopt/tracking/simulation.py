@@ -21,8 +21,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from .. import compiled
-from ..kinematics import kinematic_functions
+from ..model.kinematics import kinematic_functions
+from ..runtime import compiled
 from .controller import Controller
 from .outcome import cp_points
 from .plant import PARAMETER_NAMES, plant_period

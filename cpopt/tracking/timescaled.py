@@ -64,8 +64,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from ..dynamics import arm_dynamics
-from ..mapping import mapped
+from ..model.dynamics import arm_dynamics
+from ..model.mapping import mapped
 from .reference import Reference
 from .tvlqr import DEFAULT_Q, DEFAULT_QF, TVLQRController
 

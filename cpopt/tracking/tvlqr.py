@@ -24,9 +24,9 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from ..dynamics import arm_dynamics
-from ..mapping import mapped
-from ..robot import Arm
+from ..model.dynamics import arm_dynamics
+from ..model.mapping import mapped
+from ..model.robot import Arm
 from .controller import Controller
 from .reference import Reference
 

@@ -1,5 +1,5 @@
 """A cpopt arm from a URDF: the plane of motion, the kind, and each link's length, mass, centre
-of mass and inertia in cpopt's conventions (:mod:`cpopt.robot`).
+of mass and inertia in cpopt's conventions (:mod:`cpopt.model.robot`).
 
 The checks are made in the world frame at q = 0 (every ``origin rpy`` composed along the
 chain), with URDF's gravity along -z. The plane's normal n is the third (passive) joint's axis;

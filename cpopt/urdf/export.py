@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from xml.sax.saxutils import quoteattr
 
-from ..robot import Arm
+from ..model.robot import Arm
 from .model import UNLIMITED
 
 NORMAL = "0 -1 0"

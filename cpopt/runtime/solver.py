@@ -1,0 +1,320 @@
+"""The solver call shared by the planners: Ipopt's options from a problem's settings, Ipopt's
+return status mapped to cpopt's statuses, and typed solver statistics.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import casadi as ca
+import numpy as np
+
+from . import progress
+from .budget import check_stop
+
+IPOPT_STATUS = {
+    "Solve_Succeeded": "solved",
+    "Solved_To_Acceptable_Level": "solved",
+    "Infeasible_Problem_Detected": "infeasible",
+    "Maximum_Iterations_Exceeded": "max_iterations",
+    "Maximum_CpuTime_Exceeded": "max_iterations",
+    "Maximum_WallTime_Exceeded": "time_limit",
+}
+"""Ipopt's return status -> cpopt's status; any other return status is ``not_converged``."""
+
+
+def status_of(return_status: str) -> str:
+    """cpopt's status (``solved``, ``infeasible``, ...) for an Ipopt return status."""
+    return IPOPT_STATUS.get(return_status, "not_converged")
+
+
+def ipopt_options(settings, mu_strategy: bool = True) -> dict:
+    """Ipopt's own options from an ``optimizer.solver`` block (a ``SolverSpec``).
+
+    ``mu_strategy`` False leaves Ipopt's barrier update at its default (the collocation peer
+    has always run with it).
+    """
+    options = {
+        "print_level": settings.print_level,
+        "max_iter": settings.max_iter,
+        "tol": settings.tol,
+        "max_wall_time": settings.max_time,
+        "sb": "yes",
+    }
+    if mu_strategy:
+        options["mu_strategy"] = settings.mu_strategy
+    return options
+
+
+FATROP_MU_INIT = 1e-2
+"""Fatrop's initial barrier parameter: its default 0.1 stalls on the benchmark transfer."""
+
+
+def fatrop_options(settings) -> dict:
+    """nlpsol options for Fatrop from an ``optimizer.solver`` block (a ``SolverSpec``):
+    expanded SX functions and the optimal-control structure detected from the constraints."""
+    return {
+        "expand": True,
+        "structure_detection": "auto",
+        "print_time": False,
+        "record_time": True,
+        "fatrop.print_level": settings.print_level,
+        "fatrop.max_iter": settings.max_iter,
+        "fatrop.tol": settings.tol,
+        "fatrop.mu_init": FATROP_MU_INIT,
+    }
+
+
+class PlannerDetails(Protocol):
+    """What a planner reports beyond the common statistics (typed per planner)."""
+
+    def as_dict(self) -> dict:
+        """JSON-ready figures, merged into ``solution.json``'s ``solver`` entry."""
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """How a plan was found.
+
+    Attributes
+    ----------
+    iterations : int
+        Ipopt iterations over every solve the planner ran.
+    build_time_s, solve_time_s : float
+        Time spent building the NLP and in the solver [s].
+    message : str
+        What the solver said, in one line.
+    objective : float or None
+        The objective at the returned plan (optimizing planners).
+    cost_terms : mapping of str to float
+        Each objective term's value, by name, before weighting.
+    violations : tuple of str
+        Constraints the returned plan violates, the worst place of each by name and time.
+    details : PlannerDetails or None
+        The planner's own figures (sign of gamma, certificate, intervals, ...).
+    stage_times : mapping of str to float
+        Wall time of each stage of the solve [s]: ``plan``, ``sample``, ``verify`` (and
+        ``track`` with a tracking block), from :class:`cpopt.pipeline.StageRecord`.
+    """
+
+    iterations: int = 0
+    build_time_s: float = 0.0
+    solve_time_s: float = 0.0
+    message: str = ""
+    objective: float | None = None
+    cost_terms: Mapping[str, float] = field(default_factory=dict)
+    violations: tuple[str, ...] = ()
+    details: PlannerDetails | None = None
+    stage_times: Mapping[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """The ``solver`` entry of ``solution.json``."""
+        out = {
+            "iterations": self.iterations,
+            "build_time_s": self.build_time_s,
+            "solve_time_s": self.solve_time_s,
+            "message": self.message,
+            "stage_times": dict(self.stage_times),
+        }
+        if self.objective is not None:
+            out.update(objective=self.objective, cost_terms=dict(self.cost_terms))
+        if self.details is not None:
+            out.update(self.details.as_dict(), violations=list(self.violations))
+        return out
+
+
+@dataclass(frozen=True)
+class NlpRun:
+    """One call of an NLP solver.
+
+    Attributes
+    ----------
+    x : numpy.ndarray
+        The returned decision vector (the best iterate when the solve failed).
+    objective : float
+        The objective there.
+    return_status : str
+        Ipopt's own word.
+    status : str
+        cpopt's status (:func:`status_of`).
+    iterations : int
+        Ipopt iterations.
+    solve_time_s : float
+        Wall time of the call [s].
+    lam_g : numpy.ndarray
+        The constraints' multipliers, positive where a lower bound binds.
+    lam_x : numpy.ndarray
+        The variables' bound multipliers as nlpsol returns them (for a warm start).
+    """
+
+    x: np.ndarray
+    objective: float
+    return_status: str
+    status: str
+    iterations: int
+    solve_time_s: float
+    lam_g: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lam_x: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def read_stats(stats: Mapping) -> tuple[str, str, int]:
+    """(the solver's return status, cpopt's status, iterations) from a CasADi stats dict.
+
+    Ipopt names its status; Fatrop returns a number (0 on success) and a ``success`` flag, and
+    its failures map to ``max_iterations`` when the iteration limit was reached, else
+    ``not_converged``.
+    """
+    status = stats.get("return_status", "unknown")
+    iterations = int(stats.get("iter_count", 0))
+    if isinstance(status, str):
+        return status, status_of(status), iterations
+    word = "solved" if stats.get("success") else "not_converged"
+    return f"return status {status}", word, iterations
+
+
+class IterationReporter(ca.Callback):
+    """Ipopt's iteration callback (nlpsol option ``iteration_callback``): each iteration is
+    reported to :func:`cpopt.runtime.progress.iteration` with the label of the run.
+
+    A stop (Ctrl-C, the wall-clock limit) raised while the callback runs would be swallowed by
+    CasADi; the callback keeps it, asks Ipopt to stop, and :func:`run_nlp` raises it again once
+    Ipopt has returned.
+
+    Parameters
+    ----------
+    nx, ng, np_ : int
+        Sizes of the NLP's decision vector, constraints and parameters.
+    """
+
+    def __init__(self, nx: int, ng: int, np_: int) -> None:
+        ca.Callback.__init__(self)
+        self.sizes = {"x": nx, "lam_x": nx, "g": ng, "lam_g": ng, "lam_p": np_, "f": 1}
+        self.count, self.label, self.stop = 0, "", None
+        self.construct("iterations", {})
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_name_in(self, i: int) -> str:
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i: int) -> str:
+        return "stop"
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.sizes.get(ca.nlpsol_out(i), 0), 1)
+
+    def start(
+        self,
+        label: str,
+        limit: int | None = None,
+        abandon=None,
+        lbg=None,
+        ubg=None,
+        deadline: float = math.inf,
+    ) -> None:
+        """Reset the count for a new run called ``label``, stopped after ``limit`` iterations
+        if given (a cap below the solver's own ``max_iter``, without rebuilding the solver),
+        once ``abandon(iteration, objective, infeasibility)`` is true (a run another has
+        already beaten; the infeasibility is the largest violation of ``lbg <= g <= ubg``), or
+        once ``time.monotonic()`` passes ``deadline`` [s] (a search's own deadline, which
+        leaves it the time to return its best plan)."""
+        self.count, self.label, self.stop, self.limit = 0, label, None, limit
+        self.capped, self.abandon, self.abandoned = False, abandon, False
+        self.deadline, self.late = deadline, False
+        self.bounds = (
+            (np.asarray(lbg, float).ravel(), np.asarray(ubg, float).ravel())
+            if lbg is not None and ubg is not None
+            else None
+        )
+
+    def infeasibility(self, g) -> float:
+        """The largest violation of the run's constraint bounds by ``g`` (0 without bounds)."""
+        if self.bounds is None or self.bounds[0].size == 0:
+            return 0.0
+        g = np.asarray(g, float).ravel()
+        lower, upper = self.bounds
+        return float(np.max(np.maximum(lower - g, g - upper), initial=0.0))
+
+    def eval(self, arg) -> list:
+        self.count += 1
+        try:
+            progress.iteration(self.count, self.label)
+        except BaseException as stop:  # Ctrl-C or the time limit: stop Ipopt, raise later
+            self.stop = stop
+        self.capped = self.limit is not None and self.count > self.limit
+        if self.abandon is not None:
+            infeasibility = self.infeasibility(arg[2])
+            self.abandoned = bool(self.abandon(self.count, float(arg[1]), infeasibility))
+        self.late = time.monotonic() > self.deadline
+        stop = self.stop is not None or self.capped or self.abandoned or self.late
+        return [1 if stop else 0]
+
+
+def run_nlp(
+    solver: ca.Function,
+    reporter: IterationReporter | None = None,
+    label: str = "",
+    limit: int | None = None,
+    abandon=None,
+    deadline: float = math.inf,
+    **arguments,
+) -> NlpRun:
+    """Call a CasADi ``nlpsol`` solver with its arguments (x0, p, lbx, ubx, lbg, ubg).
+
+    ``reporter`` is the solver's :class:`IterationReporter`, if it has one; ``label`` names the
+    run in progress lines and above Ipopt's output (``--verbose``); ``limit`` caps the
+    iterations through the reporter (a run stopped there is ``max_iterations``); ``abandon``
+    stops it once ``abandon(iteration, objective, infeasibility)`` is true (status
+    ``dominated``), ``deadline`` once ``time.monotonic()`` passes it (status ``time_limit``;
+    see :meth:`IterationReporter.start`).
+    """
+    if label:
+        progress.ipopt_run(label)
+    if reporter is not None:
+        bounds = arguments.get("lbg"), arguments.get("ubg")
+        reporter.start(label, limit, abandon, *bounds, deadline=deadline)
+    start = time.perf_counter()
+    solution = solver(**arguments)
+    elapsed = time.perf_counter() - start
+    if reporter is not None and reporter.stop is not None:
+        raise reporter.stop
+    check_stop()
+    ipopt, status, iterations = read_stats(solver.stats())
+    if reporter is not None and reporter.capped:
+        ipopt, status = f"Iteration_Cap_{limit}", "max_iterations"
+    if reporter is not None and reporter.abandoned:
+        ipopt, status = f"Abandoned_Dominated_At_{iterations}", "dominated"
+    if reporter is not None and reporter.late:
+        ipopt, status = f"Search_Deadline_At_{iterations}", "time_limit"
+    return NlpRun(
+        x=np.asarray(solution["x"]).ravel(),
+        objective=float(solution["f"]),
+        return_status=ipopt,
+        status=status,
+        iterations=iterations,
+        solve_time_s=elapsed,
+        lam_g=-np.asarray(solution["lam_g"]).ravel(),
+        lam_x=np.asarray(solution["lam_x"]).ravel(),
+    )
+
+
+__all__ = [
+    "IPOPT_STATUS",
+    "IterationReporter",
+    "NlpRun",
+    "PlannerDetails",
+    "SolverStats",
+    "fatrop_options",
+    "ipopt_options",
+    "read_stats",
+    "run_nlp",
+    "status_of",
+]
