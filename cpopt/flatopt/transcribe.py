@@ -187,6 +187,7 @@ class _Transcription:
     node_lifts: dict = field(default_factory=dict)  # (node, after, fourth) -> (symbol, value)
     warm: bool = False  # started from a seed trajectory (WARM_MU_INIT)
     resume: bool = False  # started from the previous round's solution and multipliers
+    gamma_grid: int = GAMMA_GRID  # points per phase of |gamma| >= gamma_min
 
     @property
     def settings(self):
@@ -351,6 +352,7 @@ def build(
     grids: tuple[Grid, ...] | None = None,
     warm: bool = False,
     resume: bool = False,
+    gamma_grid: int = GAMMA_GRID,
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -365,6 +367,10 @@ def build(
         Each phase's samples (default :func:`initial_grids`; refinement adds to them).
     warm : bool
         The solver is for starts from a seed trajectory (:data:`WARM_MU_INIT`).
+    resume : bool
+        The solver starts from a previous solution's multipliers (:data:`RESUME_OPTIONS`).
+    gamma_grid : int
+        Equally spaced points per phase where |gamma| >= gamma_min is a constraint.
     """
     grids = initial_grids(problem) if grids is None else grids
     holding = holding_pattern(problem, signs)
@@ -384,10 +390,13 @@ def build(
         _settings_key(problem),
         warm,
         resume,
+        gamma_grid,
     )
     if key not in _CACHE:
         sym = {n: ca.MX.sym(n) for n in problem.values}
-        tr = _Transcription(problem, signs, holding, sym, warm=warm, resume=resume)
+        tr = _Transcription(
+            problem, signs, holding, sym, warm=warm, resume=resume, gamma_grid=gamma_grid
+        )
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
             _phase(tr, k, grids[k].samples())
@@ -545,11 +554,11 @@ def _phase(tr: _Transcription, k: int, samples: PhaseSamples) -> None:
 
 
 def _gamma_constraints(tr: _Transcription, k: int, curve, extra: np.ndarray) -> None:
-    """|gamma| >= gamma_min on :data:`GAMMA_GRID` equally spaced points and at the extra
+    """|gamma| >= gamma_min on ``tr.gamma_grid`` equally spaced points and at the extra
     samples (gamma is cheap: the norm of the CP's acceleration plus g0 e_y)."""
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
-    s_gamma = np.r_[np.linspace(0.0, 1.0, GAMMA_GRID), extra]
+    s_gamma = np.r_[np.linspace(0.0, 1.0, tr.gamma_grid), extra]
     # a pinned switch holds |gamma| = gamma_min at the node exactly; the grid's copy would be
     # a redundant active constraint there
     keep = ~(((s_gamma == 0) & tr.pinned_switch(k)) | ((s_gamma == 1) & tr.pinned_switch(k + 1)))
