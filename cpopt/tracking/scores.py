@@ -91,8 +91,10 @@ with an actuation delay of ``delay`` control periods."""
 
 def batch_judge(controller, tolerance: Tolerance | None = None) -> Judge:
     """A judge running a tracking controller's batch (:func:`run_trials`)."""
+    # a delayed step is another function: compiled, each one-run batch of the delay category
+    # would wait seconds for the compiler
     return lambda rows, noise, delay=0: (
-        run_trials(controller, rows, noise, tolerance, delay=delay).success
+        run_trials(controller, rows, noise, tolerance, jit=delay == 0, delay=delay).success
     )
 
 
