@@ -27,7 +27,8 @@ from ..budget import check_time
 from ..nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..problem import Problem
 from ..trajectory import Trajectory, gamma_crossings
-from .transcribe import GAMMA_SAFETY, holding_pattern
+from .holding import holding_pattern
+from .transcribe import GAMMA_SAFETY
 
 SEED_INTERVALS = 30
 """Collocation intervals of the seed (chosen by measurement: 30 finds the benchmark transfer's

@@ -44,6 +44,7 @@ from ..solver import IterationReporter, ipopt_options
 from . import path_timing
 from .assemble import SampleBlock, assemble
 from .constraints import Constraints
+from .holding import holding_pattern
 from .layout import Layout
 from .quadrature import Grid, PhaseSamples, piece_counts
 from .samples import NY, QD, REACH, TAU, Q, mapped_outputs
@@ -279,41 +280,6 @@ class _Transcription:
         if self.settings.smooth_torque and i in self.alphas:
             P = ca.horzcat(P, self.flat["fourth"](z, self.alphas[i]))
         return P
-
-
-def rest_ends(problem: Problem) -> list[bool]:
-    """Per node: a start or goal at rest whose velocities are not freed."""
-    names = node_names(len(problem.nodes))
-    out = []
-    for i, (name, node) in enumerate(zip(names, problem.nodes, strict=True)):
-        end = i in (0, len(problem.nodes) - 1)
-        fixed_still = all(
-            f"{name}.{f}" not in problem.free for f in ("xdot", "ydot", "thetadot_deg")
-        )
-        out.append(end and fixed_still and node.at_rest)
-    return out
-
-
-def holding_possible(problem: Problem, sign: int, index: int) -> bool:
-    """Can the rest end ``index`` sit at the holding torque (xi = 0, base still) with this sign?"""
-    name = node_names(len(problem.nodes))[index]
-    node = problem.nodes[index]
-    if f"{name}.theta_deg" in problem.free:
-        return False
-    if f"{name}.xi" not in problem.free and node.xi != 0:
-        return False
-    gamma_min = problem.spec.optimizer.gamma_min
-    return sign * problem.arm.gravity * np.sin(node.theta) >= max(gamma_min, 1e-3)
-
-
-def holding_pattern(problem: Problem, signs: tuple[int, ...]) -> tuple[bool, ...]:
-    """Per node: held at the holding torque (a rest end, ``smooth_torque``, and possible with
-    the sign of gamma of the phase it starts or ends)."""
-    smooth = problem.spec.optimizer.smooth_torque
-    return tuple(
-        rest and smooth and holding_possible(problem, signs[min(i, len(signs) - 1)], i)
-        for i, rest in enumerate(rest_ends(problem))
-    )
 
 
 def _settings_key(problem: Problem) -> tuple:
