@@ -28,7 +28,8 @@ up to half the plan's duration later for ``tvlqr_timescaled``.
 over the deadline or not solved); it has no mass margins. Every controller also gets a
 RealAIGym-style score (:mod:`cpopt.tracking.scores`, ``--score-values`` per category, 0 for
 none): ``SCORE <plan> <controller> model=... velocity_noise=... torque_noise=... gain=...
-delay=... overall=...`` (torque noise, gain and delay are NaN: the plant does not model them).
+delay=... overall=...`` (torque noise up to 10 % of the motors' limits, both actuator gains
+0.5 .. 1.5, actuation delay 0 .. 40 ms).
 
 A run succeeds when at T the CP is within 2 cm and theta within 5 deg of the goal, every joint
 velocity within 0.25 rad/s (m/s) of the goal's, and it never diverged
@@ -151,7 +152,7 @@ def measure(problem, plan, name: str, args) -> Row:
     if args.score_values:
         from cpopt.tracking.scores import batch_judge, scores
 
-        row.score = scores(batch_judge(controller), frictionless, args.score_values)
+        row.score = scores(batch_judge(controller), frictionless, ref.period, args.score_values)
     row.seconds = time.perf_counter() - tic
     return row
 
@@ -189,7 +190,7 @@ def measure_mpc(problem, plan, args) -> Row:
     row.replan = replan_figures(runs + more + mc_runs)
     if args.score_values:
         frictionless = Plant(plant.arm, torque_limit=plant.torque_limit).parameters()
-        row.score = scores(mpc_judge(mpc), frictionless, args.score_values)
+        row.score = scores(mpc_judge(mpc), frictionless, mpc.period, args.score_values)
     row.seconds = time.perf_counter() - tic
     return row
 

@@ -60,9 +60,9 @@ def replan(
 
     The remaining motion to the plan's goal at T (a shrinking horizon) keeps the plan's
     pattern of signs of gamma and its switch times still ahead, chooses the compensator's xi
-    and eta at t (unbounded, see :mod:`cpopt.flatopt.remaining_motion`), and has the problem's
-    objective and limits;
-    it is warm started from the current plan and solved by Ipopt within ``deadline_s``.
+    and eta at t (within the problem's bounds, see :mod:`cpopt.flatopt.remaining_motion`),
+    and has the problem's objective and limits; it is warm started from the current plan and
+    solved by Ipopt within ``deadline_s``.
 
     Parameters
     ----------

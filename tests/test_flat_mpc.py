@@ -121,7 +121,8 @@ def test_benchmark_prints_replan_and_score_lines():
     scores = [ln.split(" ", 3) for ln in lines if ln.startswith("SCORE ")]
     assert [s[2] for s in scores] == ["tvlqr", "flat_mpc"] and scores[0][3] == scores[1][3]
     assert re.fullmatch(
-        r"model=[01]\.\d{3} velocity_noise=[01]\.\d{3} torque_noise=nan gain=nan delay=nan "
+        r"model=[01]\.\d{3} velocity_noise=[01]\.\d{3} torque_noise=[01]\.\d{3} gain=[01]\.\d{3} "
+        r"delay=[01]\.\d{3} "
         r"overall=[01]\.\d{3}",
         scores[0][3],
     )

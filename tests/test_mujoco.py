@@ -97,7 +97,7 @@ def test_a_tracked_plan_ends_the_same_on_both_engines(name, controller):
     assert builtin.success == on_mujoco.success
 
 
-def test_friction_saturation_and_noise_are_the_built_in_plants():
+def test_friction_saturation_gains_and_noise_are_the_built_in_plants():
     plan = cpopt.solve(load_problem(PROBLEMS / "swing_up_torque_limited.yaml")).plan
     arm = plan.arm
     plant = Plant(
@@ -105,6 +105,7 @@ def test_friction_saturation_and_noise_are_the_built_in_plants():
         viscous=(0.5, 0.3, 0.01),
         coulomb=(1.0, 0.5, 0.02),
         torque_limit=(110.0, 45.0),
+        gain=(0.95, 1.05),
     )
     noise = Noise((1e-4,) * 3, (1e-2,) * 3, seed=3)
     for controller in ("tvlqr", "tvlqr_timescaled"):

@@ -1,5 +1,6 @@
 """Re-planning from a measured state (cpopt.replan, cpopt.flatopt.replan)."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -110,3 +111,24 @@ def test_a_closed_form_plan_cannot_be_replanned(paper_solutions):
         cpopt.replan(solution, 0.1, np.zeros(3), np.zeros(3))
     with pytest.raises(ValueError, match=r"solution: expected a Solution of cpopt\.solve"):
         cpopt.replan(paper_solutions["paper_transfer"], 0.1, np.zeros(3), np.zeros(3))
+
+
+def test_xi_and_eta_at_the_replan_instant_keep_the_problems_bounds(transfer):
+    """transfer_min_torque frees xi in [-40, 40] m/s^2 and eta in [-200, 200] m/s^3 at its
+    start and goal: a re-plan's start keeps within them."""
+    from cpopt.flatopt.remaining_motion import compensator_bounds
+
+    solution, seed = transfer
+    problem = solution.problem
+    assert compensator_bounds(problem, "xi") == (-40.0, 40.0)
+    assert compensator_bounds(problem, "eta") == (-200.0, 200.0)
+    unbounded = replace(problem, free={})
+    assert compensator_bounds(unbounded, "eta") == (-np.inf, np.inf)
+    t = 0.3
+    now = sample_at(solution.plan, [t], seed)
+    rest = remaining(problem, solution.plan, t, now.q[0], now.qd[0])
+    assert rest.problem.free["start.eta"] == (-200.0, 200.0)
+    r = cpopt.replan(solution, t, now.q[0], now.qd[0] + np.array([0.02, 0.0, -0.04]))
+    assert r.status == "solved"
+    xi, eta = r.plan.nodes[0].xi, r.plan.nodes[0].eta
+    assert -40.0 <= xi <= 40.0 and -200.0 <= eta <= 200.0

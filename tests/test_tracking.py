@@ -50,7 +50,7 @@ def test_plant_period_is_the_exact_flow(transfer):
     arm = plan.arm
     x0, tau = ref.x[300], np.array([200.0, -30.0])
     step = plant_period(arm.kind, arm.base, arm.gravity, 1e-3)
-    x1 = np.asarray(step(x0, tau, Plant(arm).parameters())[0]).ravel()
+    x1 = np.asarray(step(x0, tau, Plant(arm).parameters(), np.zeros(2))[0]).ravel()
     forward = arm_dynamics(arm)["forward"]
 
     def rhs(_t, x):
@@ -197,6 +197,52 @@ def test_friction_noise_and_saturation_each_show(transfer):
     assert not clean.saturated.any()
 
 
+def test_actuator_gain_and_torque_noise_scale_and_add_to_the_applied_torque(transfer):
+    """One period of the plant: gain g on tau is gain 1 on g tau; noise w adds to it."""
+    arm = transfer[0].arm
+    x0, tau, w = transfer[1].x[300], np.array([200.0, -30.0]), np.array([3.0, -1.0])
+    step = plant_period(arm.kind, arm.base, arm.gravity, 1e-3)
+    gained = Plant(arm, gain=(0.7, 1.3)).parameters()
+    a = step(x0, tau, gained, w)
+    b = step(x0, np.array([0.7, 1.3]) * tau + w, Plant(arm).parameters(), np.zeros(2))
+    np.testing.assert_allclose(np.asarray(a[0]), np.asarray(b[0]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(a[2]).ravel(), [143.0, -40.0], rtol=1e-12)
+    limited = Plant(arm, torque_limit=(100.0, 100.0), gain=(0.5, 0.5)).parameters()
+    saturated = np.asarray(step(x0, tau, limited, np.zeros(2))[2]).ravel()
+    np.testing.assert_allclose(saturated, [50.0, -15.0])  # saturated, then the gain
+
+
+def test_torque_noise_is_drawn_apart_from_the_measurement_noise():
+    measured = Noise((1e-3,) * 3, (1e-2,) * 3, seed=4)
+    both = replace(measured, torque=(5.0, 1.0))
+    a = measured.draw(measured.generators(2), 20000)
+    b = both.draw(both.generators(2), 20000)
+    np.testing.assert_array_equal(a[:6], b[:6])  # adding torque noise keeps the measurements'
+    assert not a[6:].any()
+    np.testing.assert_allclose(b[6:].std(axis=1), [5.0, 1.0], rtol=0.03)
+    np.testing.assert_allclose(b[:6].std(axis=1), measured.std, rtol=0.03)
+
+
+def test_gain_delay_and_torque_noise_each_show(transfer):
+    """On the model, 1 kHz (clean: 8e-7 m): an actuation delay holds the plan's initial
+    torque first; measured errors 1.5e-4 m (1 ms delay), 3.6e-3 m (gains 0.8), 2.9e-4 m
+    (torque noise of 50 and 10 N m, seeded)."""
+    plan, ref = transfer
+    arm = plan.arm
+    delayed = track(None, make_controller("tvlqr", ref), Plant(arm, delay=0.003))
+    np.testing.assert_array_equal(delayed.tau[:3], np.tile(ref.tau[0], (3, 1)))
+    assert np.abs(delayed.tau[3] - ref.tau[0]).max() > 1.0
+    late = track(None, make_controller("tvlqr", ref), Plant(arm, delay=0.001))
+    assert late.max_cp_error == pytest.approx(1.5e-4, rel=0.2)
+    weak = track(None, make_controller("tvlqr", ref), Plant(arm, gain=(0.8, 0.8)))
+    assert weak.max_cp_error == pytest.approx(3.6e-3, rel=0.2)
+    noise = Noise(torque=(50.0, 10.0), seed=1)
+    shaken = track(None, make_controller("tvlqr", ref), noise=noise)
+    again = track(None, make_controller("tvlqr", ref), noise=noise)
+    assert shaken.max_cp_error == pytest.approx(2.9e-4, rel=0.2)
+    np.testing.assert_array_equal(shaken.tau, again.tau)
+
+
 @pytest.fixture(scope="module")
 def collocation_plans():
     pytest.importorskip("rockit")
@@ -236,6 +282,9 @@ TRACKING = textwrap.dedent("""\
         links: [{mass: 10.5}, null, {length: 1.0, com: 0.5, inertia: 0.08}]
         friction: {viscous: [1, 1, 0.01], coulomb: [2, 1, 0.01]}
         torque_limit: [900, 150]
+        gain: [0.98, 1.02]
+        delay: 0.002
+        torque_noise: [1.0, 0.5]
     """)
 
 
@@ -253,6 +302,8 @@ def test_the_tracking_block_builds_the_plant():
     assert links[0].mass == 10.5 and pytest.approx(10.5 * 1.5**2 / 12) == links[0].I
     assert links[1] == problem.arm.links[1]
     assert (links[2].d, links[2].I) == (0.5, 0.08)
+    plant = problem.spec.tracking.plant
+    assert (plant.gain, plant.delay, plant.torque_noise) == ([0.98, 1.02], 0.002, [1.0, 0.5])
 
 
 @pytest.mark.parametrize(
@@ -276,6 +327,12 @@ def test_the_tracking_block_builds_the_plant():
         ("plant.friction.viscous", [0, 0, -1]),
         ("plant.friction.coulomb", "none"),
         ("plant.torque_limit", [100, 0]),
+        ("plant.gain", [1.0, 0.0]),
+        ("plant.gain", [1.0]),
+        ("plant.delay", -0.001),
+        ("plant.delay", 2.0),
+        ("plant.torque_noise", [0.0, -1.0]),
+        ("plant.torque_noise", "loud"),
         ("plant.mass", 1),
     ],
 )
@@ -297,6 +354,21 @@ def test_every_tracking_key_is_validated(path, value, tmp_path, capsys):
     assert err.value.path.startswith(f"tracking.{path.split('[')[0]}")
     assert main(["check", str(file)]) == 2
     assert f"tracking.{path.split('[')[0]}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("key", "value"), [("delay", 0.01), ("torque_noise", [1.0, 0.0])])
+def test_the_mujoco_plant_refuses_delay_and_torque_noise(key, value, tmp_path, capsys):
+    pytest.importorskip("mujoco")
+    data = _data()
+    data["tracking"]["plant"].update(engine="mujoco", delay=0.0, torque_noise=[0.0, 0.0])
+    data["tracking"]["plant"][key] = value
+    file = tmp_path / "bad.yaml"
+    file.write_text(yaml.safe_dump(data))
+    with pytest.raises(ProblemError) as err:
+        load_problem(file)
+    assert err.value.path == f"tracking.plant.{key}"
+    assert main(["check", str(file)]) == 2
+    assert f"tracking.plant.{key}" in capsys.readouterr().err
 
 
 def test_dfl_on_an_unconstrained_collocation_plan_is_refused_at_load():
@@ -418,3 +490,17 @@ def test_a_buffered_call_equals_casadis_own_call_repeated_inputs_included():
         np.testing.assert_array_equal(g, o)
     with pytest.raises(ValueError, match="input 1"):
         call_buffered(mapped, X, rng.normal(size=(2, 3)))
+
+
+def test_a_score_measures_every_category(transfer):
+    """tvlqr on the paper's transfer, 3 values a category, on the model with 1.5 x peak motors:
+    a delay of 20 or 40 ms and the gains 0.5 fail it; 10 % torque noise does not."""
+    from cpopt.tracking.scores import batch_judge, scores
+
+    ref = transfer[1]
+    controller = make_controller("tvlqr", ref)
+    plant, _ = benchmark_plant(controller)
+    nominal = Plant(plant.arm, torque_limit=plant.torque_limit).parameters()
+    figures = scores(batch_judge(controller), nominal, ref.period, 3)
+    expected = {"model": 30 / 36, "velocity_noise": 1.0, "torque_noise": 1.0, "gain": 2 / 3}
+    assert figures == pytest.approx({**expected, "delay": 1 / 3, "overall": 0.7666667})

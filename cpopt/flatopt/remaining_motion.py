@@ -2,9 +2,10 @@
 
 At time t the arm is measured at (q, qd). The remaining motion runs from there to the plan's
 goal at T (a shrinking horizon). Its start is the measured third-link state with the
-compensator's xi and eta free and unbounded: the bounds a problem gives ``start.xi`` and
-``start.eta`` are for the motion's start, often at rest (measured on transfer_min_torque, a
-re-plan at 0.3 s from a perturbed state wanted eta past the start's +-200 m/s^3). The plan's
+compensator's xi and eta free within the problem's bounds: the widest the problem gives xi
+(``xi`` or ``xi_after`` of any node in ``optimizer.free``), and eta likewise; unbounded when
+it frees none (measured on transfer_min_torque, a re-plan at 0.3 s from a perturbed state
+wanted eta past the problem's +-200 m/s^3: bounded, it is a harder problem). The plan's
 nodes still ahead keep their values (the switches the optimizer added keep their times and
 their freed state, as the search solved them), and every other freed value of those nodes
 stays free. Node times and the duration are fixed: the goal is still due at T. The
@@ -85,6 +86,17 @@ def _augmented_free(problem: Problem, plan: CPPlan) -> dict:
     return augmented.free
 
 
+def compensator_bounds(problem: Problem, field: str) -> tuple[float, float]:
+    """The widest bounds the problem gives ``field`` (``xi`` [m/s^2] or ``eta`` [m/s^3]) at
+    any node (before or after a reset), or (-inf, inf) when it frees it nowhere."""
+    bounds = [
+        b for name, b in problem.free.items() if name.partition(".")[2] in (field, f"{field}_after")
+    ]
+    if not bounds:
+        return (-math.inf, math.inf)
+    return (min(lo for lo, _ in bounds), max(hi for _, hi in bounds))
+
+
 def remaining(
     problem: Problem, plan: CPPlan, t: float, q, qd, free_compensator: bool = True
 ) -> Remaining | None:
@@ -116,7 +128,7 @@ def remaining(
         if node in renamed and field != "t":
             free[f"{renamed[node]}.{field}"] = bounds
     for field in START_FREE if free_compensator else ():
-        free[f"start.{field}"] = (-math.inf, math.inf)
+        free[f"start.{field}"] = compensator_bounds(problem, field)
     signs = tuple(plan.phases[i - 1].sigma for i in ahead)
     switches = tuple(j + 1 for j, i in enumerate(ahead) if i in plan.switches)
     return Remaining(replace(problem, nodes=tuple(nodes), free=free), signs, switches, t)
@@ -132,4 +144,12 @@ def shifted(plan: CPPlan, dt: float) -> CPPlan:
     return replace(plan, nodes=nodes, phases=phases)
 
 
-__all__ = ["NEAR_NODE", "Remaining", "measured_state", "plan_state_at", "remaining", "shifted"]
+__all__ = [
+    "NEAR_NODE",
+    "Remaining",
+    "compensator_bounds",
+    "measured_state",
+    "plan_state_at",
+    "remaining",
+    "shifted",
+]

@@ -27,7 +27,8 @@ from ..closedform.nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..closedform.trajectory import Trajectory, gamma_crossings
 from ..problem import Problem
 from ..runtime.budget import check_time
-from .transcribe import GAMMA_SAFETY, holding_pattern
+from .holding import holding_pattern
+from .transcribe import GAMMA_SAFETY
 
 SEED_INTERVALS = 30
 """Collocation intervals of the seed (chosen by measurement: 30 finds the benchmark transfer's

@@ -44,6 +44,7 @@ from ..runtime.solver import IterationReporter, ipopt_options
 from . import path_timing
 from .assemble import SampleBlock, assemble
 from .constraints import Constraints
+from .holding import holding_pattern
 from .layout import Layout
 from .quadrature import Grid, PhaseSamples, piece_counts
 from .samples import NY, QD, REACH, TAU, Q, mapped_outputs
@@ -187,6 +188,7 @@ class _Transcription:
     node_lifts: dict = field(default_factory=dict)  # (node, after, fourth) -> (symbol, value)
     warm: bool = False  # started from a seed trajectory (WARM_MU_INIT)
     resume: bool = False  # started from the previous round's solution and multipliers
+    gamma_grid: int = GAMMA_GRID  # points per phase of |gamma| >= gamma_min
 
     @property
     def settings(self):
@@ -280,41 +282,6 @@ class _Transcription:
         return P
 
 
-def rest_ends(problem: Problem) -> list[bool]:
-    """Per node: a start or goal at rest whose velocities are not freed."""
-    names = node_names(len(problem.nodes))
-    out = []
-    for i, (name, node) in enumerate(zip(names, problem.nodes, strict=True)):
-        end = i in (0, len(problem.nodes) - 1)
-        fixed_still = all(
-            f"{name}.{f}" not in problem.free for f in ("xdot", "ydot", "thetadot_deg")
-        )
-        out.append(end and fixed_still and node.at_rest)
-    return out
-
-
-def holding_possible(problem: Problem, sign: int, index: int) -> bool:
-    """Can the rest end ``index`` sit at the holding torque (xi = 0, base still) with this sign?"""
-    name = node_names(len(problem.nodes))[index]
-    node = problem.nodes[index]
-    if f"{name}.theta_deg" in problem.free:
-        return False
-    if f"{name}.xi" not in problem.free and node.xi != 0:
-        return False
-    gamma_min = problem.spec.optimizer.gamma_min
-    return sign * problem.arm.gravity * np.sin(node.theta) >= max(gamma_min, 1e-3)
-
-
-def holding_pattern(problem: Problem, signs: tuple[int, ...]) -> tuple[bool, ...]:
-    """Per node: held at the holding torque (a rest end, ``smooth_torque``, and possible with
-    the sign of gamma of the phase it starts or ends)."""
-    smooth = problem.spec.optimizer.smooth_torque
-    return tuple(
-        rest and smooth and holding_possible(problem, signs[min(i, len(signs) - 1)], i)
-        for i, rest in enumerate(rest_ends(problem))
-    )
-
-
 def _settings_key(problem: Problem) -> tuple:
     o = problem.spec.optimizer
     objective = o.objective if isinstance(o.objective, str) else tuple(sorted(o.objective.items()))
@@ -351,6 +318,7 @@ def build(
     grids: tuple[Grid, ...] | None = None,
     warm: bool = False,
     resume: bool = False,
+    gamma_grid: int = GAMMA_GRID,
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -365,6 +333,10 @@ def build(
         Each phase's samples (default :func:`initial_grids`; refinement adds to them).
     warm : bool
         The solver is for starts from a seed trajectory (:data:`WARM_MU_INIT`).
+    resume : bool
+        The solver starts from a previous solution's multipliers (:data:`RESUME_OPTIONS`).
+    gamma_grid : int
+        Equally spaced points per phase where |gamma| >= gamma_min is a constraint.
     """
     grids = initial_grids(problem) if grids is None else grids
     holding = holding_pattern(problem, signs)
@@ -384,10 +356,13 @@ def build(
         _settings_key(problem),
         warm,
         resume,
+        gamma_grid,
     )
     if key not in _CACHE:
         sym = {n: ca.MX.sym(n) for n in problem.values}
-        tr = _Transcription(problem, signs, holding, sym, warm=warm, resume=resume)
+        tr = _Transcription(
+            problem, signs, holding, sym, warm=warm, resume=resume, gamma_grid=gamma_grid
+        )
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
             _phase(tr, k, grids[k].samples())
@@ -545,11 +520,11 @@ def _phase(tr: _Transcription, k: int, samples: PhaseSamples) -> None:
 
 
 def _gamma_constraints(tr: _Transcription, k: int, curve, extra: np.ndarray) -> None:
-    """|gamma| >= gamma_min on :data:`GAMMA_GRID` equally spaced points and at the extra
+    """|gamma| >= gamma_min on ``tr.gamma_grid`` equally spaced points and at the extra
     samples (gamma is cheap: the norm of the CP's acceleration plus g0 e_y)."""
     g0 = tr.problem.arm.gravity
     gmin = (tr.margin if tr.margin is not None else tr.settings.gamma_min) * (1 + GAMMA_SAFETY)
-    s_gamma = np.r_[np.linspace(0.0, 1.0, GAMMA_GRID), extra]
+    s_gamma = np.r_[np.linspace(0.0, 1.0, tr.gamma_grid), extra]
     # a pinned switch holds |gamma| = gamma_min at the node exactly; the grid's copy would be
     # a redundant active constraint there
     keep = ~(((s_gamma == 0) & tr.pinned_switch(k)) | ((s_gamma == 1) & tr.pinned_switch(k + 1)))

@@ -152,12 +152,17 @@ FIT_SAMPLES = 200
 
 
 def seeded_guess(
-    nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed: Trajectory
+    nlp: FlatNLP,
+    problem: Problem,
+    signs: tuple[int, ...],
+    seed: Trajectory,
+    orders: tuple[int, ...] | None = None,
 ) -> np.ndarray:
     """The whole initial decision vector from a seed trajectory (a coarse collocation, or a
     plan already solved): freed node values from its state (:func:`cpopt.flatopt.seed.
     seeded_values`), and each phase's free coefficients fitted to its CP by least squares with
-    the eliminated boundary coefficients, which the node values fix, kept."""
+    the eliminated boundary coefficients, which the node values fix, kept; ``orders``: the CP
+    derivative orders fitted (None: those of :func:`targets`)."""
     o = problem.spec.optimizer
     values = seeded_values(problem, signs, seed)
     p = nlp.parameters(values)
@@ -179,7 +184,8 @@ def seeded_guess(
             free[b.rows[0] : b.rows[1]] = True
         C = np.array(outs[1 + k], float)
         span = (times[k], times[k + 1])
-        C[free] = fitted(basis, C, free, seed, span, signs[k] * (o.gamma_min + PUSH))
+        least = signs[k] * (o.gamma_min + PUSH)
+        C[free] = fitted(basis, C, free, seed, span, least, orders)
         for b, at in blocks:
             core[at : at + b.size] = C[b.rows[0] : b.rows[1]].T.ravel()
     return nlp.complete(core, p)
@@ -238,9 +244,11 @@ def fitted(
     seed: Trajectory,
     span: tuple[float, float],
     least: float,
+    orders: tuple[int, ...] | None = None,
 ) -> np.ndarray:
     """The free rows of a phase's coefficients (the others fixed) that fit the seed's CP and its
-    derivatives on ``span`` [s] (:func:`targets`) by least squares."""
+    derivatives on ``span`` [s] (:func:`targets`, those of ``orders`` among them when any
+    are) by least squares."""
     h = span[1] - span[0]
     inside = SIDE / h  # the phase's own limits at its ends: a plan holds a reset's time twice
     s = np.linspace(inside, 1.0 - inside, FIT_SAMPLES)
@@ -248,7 +256,10 @@ def fitted(
         s = np.linspace(0.0, 1.0, FIT_SAMPLES)  # a collocation seed: continuous at the ends
     gains = [float(np.abs(basis.matrix(s, r)).max()) for r in range(5)]
     rows, rhs = [], []
-    for order, (target, unit) in targets(seed, span[0] + s * h, least, h, gains).items():
+    aims = targets(seed, span[0] + s * h, least, h, gains)
+    if orders is not None and set(orders) & set(aims):
+        aims = {r: aim for r, aim in aims.items() if r in orders}
+    for order, (target, unit) in aims.items():
         B = basis.matrix(s, order) / h**order / unit
         rows.append(B[:, free])
         rhs.append(target / unit - B[:, ~free] @ C[~free])

@@ -296,13 +296,17 @@ class FrictionSpec(_Spec):
 
 
 class PlantSpec(_Spec):
-    """The simulated arm: link overrides, friction, torque limits [N m or N], and the engine
-    that integrates it (``cpopt``, the built-in plant, or ``mujoco``)."""
+    """The simulated arm: link overrides, friction, torque limits [N m or N], actuator gains,
+    actuation delay [s], torque noise [N m or N], and the engine that integrates it
+    (``cpopt``, the built-in plant, or ``mujoco``)."""
 
     engine: Literal["cpopt", "mujoco"] = "cpopt"
     links: Triple(PlantLinkSpec | None) | None = None
     friction: FrictionSpec = FrictionSpec()
     torque_limit: Pair(Positive | None) | None = None
+    gain: Pair(Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)]) = [1.0, 1.0]
+    delay: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.0
+    torque_noise: Pair(NonNegative) = [0.0, 0.0]
 
 
 class NoiseSpec(_Spec):

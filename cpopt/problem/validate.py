@@ -415,6 +415,24 @@ def plant_links(spec: ProblemSpec) -> list[Link]:
     return links
 
 
+def _check_mujoco_actuators(spec: ProblemSpec, source: str) -> None:
+    """The MuJoCo plant has no actuation delay or torque noise (it has the gains)."""
+    plant = spec.tracking.plant
+    if plant.engine != "mujoco":
+        return
+    for key, value, none in (
+        ("delay", plant.delay, 0.0),
+        ("torque_noise", plant.torque_noise, [0.0, 0.0]),
+    ):
+        if value != none:
+            raise ProblemError(
+                source,
+                f"tracking.plant.{key}",
+                f"the mujoco plant has no {key.replace('_', ' ')}: got {value}; "
+                "use the built-in plant (engine: cpopt)",
+            )
+
+
 def check_tracking(spec: ProblemSpec, source: str) -> None:
     """The ``tracking`` block's physics: a valid plant third link, a controller for the plan,
     MuJoCo installed for ``plant.engine: mujoco``."""
@@ -425,6 +443,7 @@ def check_tracking(spec: ProblemSpec, source: str) -> None:
             "mujoco needs MuJoCo, which is not installed: pip install 'cpopt[mujoco]', or use "
             "the built-in plant (engine: cpopt)",
         )
+    _check_mujoco_actuators(spec, source)
     com3 = plant_links(spec)[2].d
     if not com3 > 0:
         raise ProblemError(

@@ -33,7 +33,14 @@ from ..model.kinematics import ReachError
 from .outcome import Tolerance, TrackingOutcome, cp_points, final_errors
 from .plant import Plant
 from .reference import reference
-from .simulation import DIVERGED_CP, DIVERGED_VELOCITY, Noise, call_buffered, step_function
+from .simulation import (
+    DIVERGED_CP,
+    DIVERGED_VELOCITY,
+    Noise,
+    call_buffered,
+    initial_controller_state,
+    step_function,
+)
 from .tvlqr import DEFAULT_Q, DEFAULT_QF, TVLQRController, relative_R
 
 DEFAULT_PERIOD = 0.02
@@ -181,8 +188,12 @@ class FlatMPC:
         self.R = relative_R(first) if R is None else tuple(R)
         self.Q, self.Qf = Q, Qf
         self.first = TVLQRController(first, Q, self.R, Qf)
-        self.step = step_function(self.first)  # one law for every plan: data in the schedule
         self.seed = sample(plan)
+
+    def step(self, delay: int = 0) -> ca.Function:
+        """The period function with an actuation delay of ``delay`` periods (one law for
+        every plan: the plan's data are in the schedule)."""
+        return step_function(self.first, False, delay)
 
     @property
     def period(self) -> float:
@@ -219,18 +230,24 @@ class FlatMPC:
         f = self.settings.motor_fraction
         return tuple(None if v is None else f * float(v) for v in self.torque_limit)
 
-    def run(self, parameters: np.ndarray, noise: Noise | None = None, index: int = 0) -> MPCRun:
-        """One run on a plant with these parameters (20,), noise drawn from
-        ``default_rng([noise.seed, index])`` as run ``index`` of a batch is."""
-        return _Loop(self, np.asarray(parameters, float), noise or Noise(), index).run()
+    def run(
+        self, parameters: np.ndarray, noise: Noise | None = None, index: int = 0, delay: int = 0
+    ) -> MPCRun:
+        """One run on a plant with these parameters (22,), noise drawn as run ``index`` of a
+        batch draws it (:meth:`Noise.generators`), an actuation delay of ``delay`` periods."""
+        noise = noise or Noise()
+        return _Loop(self, np.asarray(parameters, float), noise, index, delay).run()
 
 
 class _Loop:
     """The state of one run of :class:`FlatMPC` while it runs."""
 
-    def __init__(self, mpc: FlatMPC, parameters: np.ndarray, noise: Noise, index: int) -> None:
+    def __init__(
+        self, mpc: FlatMPC, parameters: np.ndarray, noise: Noise, index: int, delay: int
+    ) -> None:
         self.mpc, self.parameters, self.noise = mpc, parameters, noise
-        self.rng = np.random.default_rng([noise.seed, index])
+        self.generators = noise.generators(index)
+        self.delay_steps = delay
         self.every, self.delay = mpc.settings.steps(mpc.period)
         self.current = Stretch(mpc.plan, mpc.first, 0)
         self.newest, self.warm = mpc.plan, None
@@ -240,10 +257,7 @@ class _Loop:
         self.logs: dict[str, list] = {k: [] for k in ("x", "tau", "qdd", "cp", "saturated")}
 
     def _noise(self, length: int) -> np.ndarray:
-        std = self.noise.std
-        if not std.any():
-            return np.zeros((6, length))
-        return (self.rng.standard_normal((length, 6)) * std).T
+        return self.noise.draw(self.generators, length)
 
     def _replan(self, k: int, X: np.ndarray, measurement: np.ndarray) -> None:
         result = self.mpc.replan_at(k, X + measurement, self.newest, self.warm)
@@ -273,7 +287,9 @@ class _Loop:
         mpc = self.mpc
         ref = mpc.reference
         horizon = ref.steps
-        X, c, k = ref.x[0].copy(), np.zeros(2), 0
+        X, k = ref.x[0].copy(), 0
+        c = initial_controller_state(mpc.first, self.delay_steps)
+        step = mpc.step(self.delay_steps)
         diverged = None
         while k < horizon:
             self._apply_due(k)
@@ -281,9 +297,9 @@ class _Loop:
             length = end - k
             measurement = self._noise(length)
             if k > 0 and k % self.every == 0:
-                self._replan(k, X, measurement[:, 0])
+                self._replan(k, X, measurement[:6, 0])
                 self._apply_due(k)  # a delay of zero periods is refused: nothing due now
-            f = _stretch_function(mpc.step, length)
+            f = _stretch_function(step, length)
             params = np.repeat(self.parameters[:, None], length, axis=1)
             schedule = self.current.schedule(k, length)
             X_next, c_next, tau, qdd, cp, sat = call_buffered(
@@ -374,7 +390,7 @@ def track_flat_mpc(
         The simulated arm (default: the model); its torque limits are the motors' the
         re-plans keep within.
     noise : Noise, optional
-        Measurement noise (default: none).
+        Measurement and torque noise (default: none).
     rate_hz : float
         Control rate [Hz].
     tolerance : Tolerance, optional
@@ -393,7 +409,7 @@ def track_flat_mpc(
     plant = plant or Plant(plan.arm)
     gains = {k: v for k, v in gains.items() if k in ("Q", "R", "Qf") and v is not None}
     mpc = FlatMPC(problem, plan, rate_hz, settings, torque_limit=plant.torque_limit, **gains)
-    run = mpc.run(plant.parameters(), noise)
+    run = mpc.run(plant.parameters(), noise, 0, plant.delay_steps(mpc.period))
     ref = mpc.reference
     m = run.tau.shape[0]
     figures = {**replan_figures([run]), "applied": run.applied}

@@ -128,7 +128,8 @@ def simulate_mujoco(controller: Controller, plant: Plant, noise: Noise | None = 
     controller : Controller
         The controller (its reference fixes the grid and the model).
     plant : Plant
-        The simulated arm: links, viscous and Coulomb friction, torque limits.
+        The simulated arm: links, viscous and Coulomb friction, torque limits, actuator
+        gains (no actuation delay).
     noise : Noise, optional
         Measurement noise, drawn as the built-in plant's run 0 draws it.
 
@@ -144,6 +145,8 @@ def simulate_mujoco(controller: Controller, plant: Plant, noise: Noise | None = 
     """
     mujoco = require_mujoco()
     ref, noise = controller.reference, noise or Noise()
+    if plant.delay_steps(ref.period) or any(noise.torque):
+        raise ValueError("the MuJoCo plant has no actuation delay or torque noise")
     substeps = steps_per_period(ref.period)
     model = arm_model(plant.arm, ref.period / substeps, plant.viscous)
     data = mujoco.MjData(model)
@@ -166,10 +169,11 @@ def simulate_mujoco(controller: Controller, plant: Plant, noise: Noise | None = 
         for k in range(controller.horizon):
             e = rng.standard_normal(6) * std if std.any() else np.zeros(6)
             tau_cmd, c_next, cp = law(schedule[:, k], x, e, c)
-            tau = np.clip(tau_cmd, -limit, limit)
+            clipped = np.clip(tau_cmd, -limit, limit)
+            tau = np.multiply(plant.gain, clipped)
             qdd, x_next = _period(mujoco, model, data, tau, substeps)
             err = float(np.linalg.norm(cp - plan_cp_at(ref, np.array(s_k))))
-            log.add(x, qdd, tau, bool(np.any(tau != tau_cmd)), cp, ref.t[0] + s_k * ref.period)
+            log.add(x, qdd, tau, bool(np.any(clipped != tau_cmd)), cp, ref.t[0] + s_k * ref.period)
             figures["max_err"] = max(figures["max_err"], err)
             figures["max_lag"] = max(figures["max_lag"], (k - s_k) * ref.period)
             c, x = c_next, x_next

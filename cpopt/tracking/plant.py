@@ -43,9 +43,11 @@ PARAMETER_NAMES = (
     *(f"friction.coulomb[{i}]" for i in range(3)),
     "torque_limit[0]",
     "torque_limit[1]",
+    "gain[0]",
+    "gain[1]",
 )
 """Names of the plant's parameters, in the order of :meth:`Plant.parameters` (SI units:
-m, kg, m, kg m^2; N m s/rad or N s/m; N m or N)."""
+m, kg, m, kg m^2; N m s/rad or N s/m; N m or N; the actuator gains are ratios)."""
 
 NO_LIMIT = 1e12
 """Stands for an absent torque limit in the parameter vector [N m or N]."""
@@ -66,15 +68,30 @@ class Plant:
         Coulomb friction level of joints 1..3 [N m or N].
     torque_limit : tuple of float or None
         Saturation of tau1, tau2 [N m or N] (None: none; per joint None too).
+    gain : tuple of float
+        Actuator gains of motors 1, 2: the torque applied is the gain times the saturated
+        command (1: an exact motor).
+    delay : float
+        Actuation delay [s]: a command reaches the motors this much later (rounded to whole
+        control periods; before the start the motors hold the plan's initial torque).
+
+    Noise on the applied torques is drawn with the measurement noise
+    (:attr:`cpopt.tracking.simulation.Noise.torque`).
     """
 
     arm: Arm
     viscous: tuple[float, float, float] = (0.0, 0.0, 0.0)
     coulomb: tuple[float, float, float] = (0.0, 0.0, 0.0)
     torque_limit: tuple[float | None, float | None] | None = None
+    gain: tuple[float, float] = (1.0, 1.0)
+    delay: float = 0.0
+
+    def delay_steps(self, period: float) -> int:
+        """The actuation delay in whole control periods of ``period`` [s]."""
+        return max(0, round(self.delay / period))
 
     def parameters(self) -> np.ndarray:
-        """The parameter vector (20,) in :data:`PARAMETER_NAMES` order."""
+        """The parameter vector (22,) in :data:`PARAMETER_NAMES` order."""
         links = [[lk.length, lk.mass, lk.d, lk.I] for lk in self.arm.links]
         limit = self.torque_limit or (None, None)
         return np.array(
@@ -83,20 +100,24 @@ class Plant:
                 *self.viscous,
                 *self.coulomb,
                 *(NO_LIMIT if v is None else v for v in limit),
+                *self.gain,
             ],
             float,
         )
 
     def with_parameters(self, values: np.ndarray) -> Plant:
-        """The plant with the parameter vector ``values`` (20,) (see :data:`PARAMETER_NAMES`)."""
+        """The plant with the parameter vector ``values`` (22,) (see :data:`PARAMETER_NAMES`);
+        its delay is this plant's."""
         v = np.asarray(values, float)
         links = tuple(Link(*v[4 * i : 4 * i + 4]) for i in range(3))
         limit = tuple(None if x >= NO_LIMIT else float(x) for x in v[18:20])
-        return Plant(
+        return replace(
+            self,
             arm=replace(self.arm, links=links),
             viscous=tuple(v[12:15]),
             coulomb=tuple(v[15:18]),
             torque_limit=None if limit == (None, None) else limit,
+            gain=tuple(v[20:22]),
         )
 
 
@@ -131,17 +152,19 @@ def plant_dynamics(kind: str, base: tuple[float, float], gravity: float) -> ca.F
 def plant_period(
     kind: str, base: tuple[float, float], gravity: float, period: float, substeps: int = SUBSTEPS
 ) -> ca.Function:
-    """``(X, tau, p) -> (X_next, qdd, tau_applied)``: one control period of a plant.
+    """``(X, tau, p, w) -> (X_next, qdd, tau_applied)``: one control period of a plant.
 
-    The commanded torque tau (2,) is saturated at the plant's limit and held (zero-order
-    hold) while the state X = (q, qd) (6,) is integrated by ``substeps`` RK4 steps over
-    ``period`` [s]; qdd (3,) are the accelerations at the start of the period.
+    The commanded torque tau (2,) is saturated at the plant's limit, multiplied by the
+    actuator gains, added the torque noise w (2,) [N m or N] and held (zero-order hold) while
+    the state X = (q, qd) (6,) is integrated by ``substeps`` RK4 steps over ``period`` [s];
+    qdd (3,) are the accelerations at the start of the period.
     """
     X = ca.SX.sym("X", 6)
     tau = ca.SX.sym("tau", 2)
     p = ca.SX.sym("p", len(PARAMETER_NAMES))
+    w = ca.SX.sym("w", 2)
     accel = plant_dynamics(kind, base, gravity)
-    held = ca.fmin(ca.fmax(tau, -p[18:20]), p[18:20])
+    held = p[20:22] * ca.fmin(ca.fmax(tau, -p[18:20]), p[18:20]) + w
 
     def f(x):
         return ca.vertcat(x[3:6], accel(x[0:3], x[3:6], held, p))
@@ -158,4 +181,4 @@ def plant_period(
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     # one expression graph for the period: cse merges the trigonometry the stages share
     x, qdd, held = ca.cse([x, qdd, held])
-    return ca.Function("plant_period", [X, tau, p], [x, qdd, held])
+    return ca.Function("plant_period", [X, tau, p, w], [x, qdd, held])

@@ -72,7 +72,7 @@ def benchmark_plant(controller: Controller | Reference, torque_limit=None) -> tu
 
 
 def sweep_parameters(nominal: np.ndarray, span: float = 0.2, steps: int = 21) -> np.ndarray:
-    """Parameter rows (VARIED * steps, 20): each varied parameter scaled by 1 - span .. 1 + span."""
+    """Parameter rows (VARIED * steps, 22): each varied parameter scaled by 1 - span .. 1 + span."""
     factors = np.linspace(1 - span, 1 + span, steps)
     rows = np.tile(nominal, (VARIED * steps, 1))
     for i in range(VARIED):
@@ -81,7 +81,7 @@ def sweep_parameters(nominal: np.ndarray, span: float = 0.2, steps: int = 21) ->
 
 
 def monte_carlo_parameters(nominal: np.ndarray, trials: int, span: float = 0.1, seed: int = 0):
-    """Parameter rows (trials, 20): every varied parameter scaled by U(1 - span, 1 + span)."""
+    """Parameter rows (trials, 22): every varied parameter scaled by U(1 - span, 1 + span)."""
     rng = np.random.default_rng(seed)
     rows = np.tile(nominal, (trials, 1))
     rows[:, :VARIED] *= rng.uniform(1 - span, 1 + span, (trials, VARIED))
@@ -111,9 +111,11 @@ def run_trials(
     noise: Noise,
     tolerance: Tolerance | None = None,
     jit: bool = True,
+    delay: int = 0,
 ) -> Trials:
-    """Run a controller on plants with the given parameter rows and judge each run."""
-    batch = simulate_batch(controller, parameters, noise, jit=jit)
+    """Run a controller on plants with the given parameter rows and judge each run (with an
+    actuation delay of ``delay`` control periods)."""
+    batch = simulate_batch(controller, parameters, noise, jit=jit, delay=delay)
     ref = controller.reference
     final = final_errors(ref.arm, ref.goal, batch.x_final)
     return Trials(

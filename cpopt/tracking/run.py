@@ -75,14 +75,15 @@ def track(
     plant : Plant, optional
         The simulated arm (default: the model, no friction, no saturation).
     noise : Noise, optional
-        Measurement noise (default: none).
+        Measurement and torque noise (default: none).
     rate_hz : float
         Control rate [Hz].
     tolerance : Tolerance, optional
         Success criterion.
     engine : str
         ``cpopt`` (the built-in plant: CasADi's RK4, compiled) or ``mujoco`` (MuJoCo's RK4,
-        :mod:`cpopt.tracking.mujoco_plant`; needs ``cpopt[mujoco]``).
+        :mod:`cpopt.tracking.mujoco_plant`; needs ``cpopt[mujoco]``; without actuator gains,
+        delay or torque noise).
     **gains
         ``Q``, ``R``, ``Qf``, ``poles`` or ``max_delay`` for :func:`make_controller`.
 
@@ -104,7 +105,10 @@ def track(
 
         batch = simulate_mujoco(controller, plant, noise)
     else:
-        batch = simulate_batch(controller, plant.parameters()[None, :], noise, log=True)
+        delay = plant.delay_steps(ref.period)
+        batch = simulate_batch(
+            controller, plant.parameters()[None, :], noise, log=True, delay=delay
+        )
     log = batch.log
     m = log["tau"].shape[0]
     diverged = None if not batch.diverged[0] else float(batch.diverged_at[0])
@@ -157,8 +161,15 @@ def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
         viscous=tuple(spec.plant.friction.viscous),
         coulomb=tuple(spec.plant.friction.coulomb),
         torque_limit=None if all(v is None for v in limit) else tuple(limit),
+        gain=tuple(spec.plant.gain),
+        delay=spec.plant.delay,
     )
-    noise = Noise(tuple(spec.noise.position), tuple(spec.noise.velocity), spec.noise.seed)
+    noise = Noise(
+        tuple(spec.noise.position),
+        tuple(spec.noise.velocity),
+        spec.noise.seed,
+        tuple(spec.plant.torque_noise),
+    )
     gains = {"Q": spec.Q, "R": spec.R, "Qf": spec.Qf, "poles": spec.poles}
     if spec.controller == "flat_mpc":  # re-plans with the flat optimizer: imported when used
         from .mpc import MPCSettings, track_flat_mpc

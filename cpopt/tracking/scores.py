@@ -12,8 +12,10 @@ motors of the benchmark plant) perturbed in one way at a time:
   link) scaled by 0.75 .. 1.25, one at a time (the category's fraction over all 12 x 21);
 * ``velocity_noise``: measurement noise on the joint velocities, standard deviation
   0 .. :data:`VELOCITY_NOISE_MAX`;
-* ``torque_noise``, ``gain`` (actuator gain 0.5 .. 1.5) and ``delay`` (0 .. 40 ms): NaN, the
-  simulated plant has no torque noise, actuator gain or measurement delay yet;
+* ``torque_noise``: noise on the applied torques, standard deviation 0 ..
+  :data:`TORQUE_NOISE_MAX` of each motor's limit;
+* ``gain``: both actuator gains 1 -+ :data:`GAIN_SPAN`;
+* ``delay``: actuation delay 0 .. :data:`DELAY_MAX` (whole control periods);
 
 ``overall`` is the mean of the categories measured.
 """
@@ -39,15 +41,32 @@ LINK_PARAMETERS = 12
 VELOCITY_NOISE_MAX = 0.2
 """Largest standard deviation of the velocity noise of the ``velocity_noise`` category
 [rad/s or m/s] (twenty times the benchmark plant's)."""
+TORQUE_NOISE_MAX = 0.1
+"""Largest standard deviation of the ``torque_noise`` category, a fraction of each motor's
+torque limit (the benchmark's motors: the problem's limits, or 1.5 x the plan's peak)."""
+GAIN_SPAN = 0.5
+"""The actuator gains are scaled by 1 +- this (RealAIGym's 0.5 .. 1.5)."""
+DELAY_MAX = 0.04
+"""Largest actuation delay of the ``delay`` category [s] (RealAIGym's 40 ms)."""
+GAINS = slice(20, 22)
+"""The actuator gains in the plant's parameter vector."""
+TORQUE_LIMITS = slice(18, 20)
+"""The motors' torque limits in the plant's parameter vector [N m or N]."""
 CATEGORIES = ("model", "velocity_noise", "torque_noise", "gain", "delay")
 
 
 def mpc_trials(
-    mpc: FlatMPC, parameters: np.ndarray, noise: Noise, tolerance: Tolerance | None = None
+    mpc: FlatMPC,
+    parameters: np.ndarray,
+    noise: Noise,
+    tolerance: Tolerance | None = None,
+    delay: int = 0,
 ) -> tuple[Trials, list[MPCRun]]:
-    """``flat_mpc`` on plants with the given parameter rows (N, 20), run i's noise drawn from
-    ``default_rng([noise.seed, i])`` as in a batch; the judged trials and the runs."""
-    runs = [mpc.run(row, noise, i) for i, row in enumerate(np.atleast_2d(parameters))]
+    """``flat_mpc`` on plants with the given parameter rows (N, 22), run i's noise drawn as
+    in a batch, an actuation delay of ``delay`` control periods; the judged trials and the
+    runs."""
+    rows = np.atleast_2d(parameters)
+    runs = [mpc.run(row, noise, i, delay) for i, row in enumerate(rows)]
     ref = mpc.reference
     x_final = np.array([run.x[-1] for run in runs])
     diverged = np.array([run.diverged_at is not None for run in runs])
@@ -65,22 +84,27 @@ def mpc_trials(
     return trials, runs
 
 
-Judge = Callable[[np.ndarray, Noise], np.ndarray]
-"""``judge(parameter rows (N, 20), noise) -> success (N,)``: one controller's runs."""
+Judge = Callable[[np.ndarray, Noise, int], np.ndarray]
+"""``judge(parameter rows (N, 22), noise, delay) -> success (N,)``: one controller's runs
+with an actuation delay of ``delay`` control periods."""
 
 
 def batch_judge(controller, tolerance: Tolerance | None = None) -> Judge:
     """A judge running a tracking controller's batch (:func:`run_trials`)."""
-    return lambda rows, noise: run_trials(controller, rows, noise, tolerance).success
+    # a delayed step is another function: compiled, each one-run batch of the delay category
+    # would wait seconds for the compiler
+    return lambda rows, noise, delay=0: (
+        run_trials(controller, rows, noise, tolerance, jit=delay == 0, delay=delay).success
+    )
 
 
 def mpc_judge(mpc: FlatMPC, tolerance: Tolerance | None = None) -> Judge:
     """A judge running ``flat_mpc`` one plant at a time (:func:`mpc_trials`)."""
-    return lambda rows, noise: mpc_trials(mpc, rows, noise, tolerance)[0].success
+    return lambda rows, noise, delay=0: mpc_trials(mpc, rows, noise, tolerance, delay)[0].success
 
 
 def model_rows(nominal: np.ndarray, values: int = SCORE_VALUES) -> np.ndarray:
-    """Parameter rows (12 * values, 20): each link parameter scaled by 1 -+ MODEL_SPAN."""
+    """Parameter rows (12 * values, 22): each link parameter scaled by 1 -+ MODEL_SPAN."""
     factors = np.linspace(1 - MODEL_SPAN, 1 + MODEL_SPAN, values)
     rows = np.tile(nominal, (LINK_PARAMETERS * values, 1))
     for i in range(LINK_PARAMETERS):
@@ -88,18 +112,36 @@ def model_rows(nominal: np.ndarray, values: int = SCORE_VALUES) -> np.ndarray:
     return rows
 
 
-def scores(judge: Judge, nominal: np.ndarray, values: int = SCORE_VALUES) -> dict[str, float]:
+def gain_rows(nominal: np.ndarray, values: int = SCORE_VALUES) -> np.ndarray:
+    """Parameter rows (values, 22): both actuator gains scaled by 1 -+ GAIN_SPAN."""
+    rows = np.tile(nominal, (values, 1))
+    rows[:, GAINS] *= np.linspace(1 - GAIN_SPAN, 1 + GAIN_SPAN, values)[:, None]
+    return rows
+
+
+def scores(
+    judge: Judge, nominal: np.ndarray, period: float, values: int = SCORE_VALUES
+) -> dict[str, float]:
     """The score of each category and ``overall`` (see the module docstring) of a controller
-    on a plant with parameters ``nominal`` (20,) (the model with the benchmark's motors)."""
+    on a plant with parameters ``nominal`` (22,) (the model with the benchmark's motors),
+    controlled every ``period`` [s]."""
     out = dict.fromkeys(CATEGORIES, math.nan)
-    out["model"] = float(judge(model_rows(nominal, values), Noise()).mean())
-    noisy = [
-        judge(nominal[None, :], Noise(velocity=(float(s),) * 3, seed=k))[0]
-        for k, s in enumerate(np.linspace(0.0, VELOCITY_NOISE_MAX, values))
+    one, fractions = nominal[None, :], np.linspace(0.0, 1.0, values)
+    out["model"] = float(judge(model_rows(nominal, values), Noise(), 0).mean())
+    velocity = [
+        judge(one, Noise(velocity=(f * VELOCITY_NOISE_MAX,) * 3, seed=k), 0)[0]
+        for k, f in enumerate(fractions)
     ]
-    out["velocity_noise"] = float(np.mean(noisy))
-    measured = [v for v in out.values() if not math.isnan(v)]
-    out["overall"] = float(np.mean(measured))
+    out["velocity_noise"] = float(np.mean(velocity))
+    scale = TORQUE_NOISE_MAX * nominal[TORQUE_LIMITS]
+    torque = [
+        judge(one, Noise(torque=tuple(f * scale), seed=k), 0)[0] for k, f in enumerate(fractions)
+    ]
+    out["torque_noise"] = float(np.mean(torque))
+    out["gain"] = float(judge(gain_rows(nominal, values), Noise(), 0).mean())
+    delays = np.rint(fractions * DELAY_MAX / period).astype(int)
+    out["delay"] = float(np.mean([judge(one, Noise(), int(d))[0] for d in delays]))
+    out["overall"] = float(np.mean([out[k] for k in CATEGORIES]))
     return out
 
 
@@ -114,6 +156,7 @@ __all__ = [
     "CATEGORIES",
     "SCORE_VALUES",
     "batch_judge",
+    "gain_rows",
     "model_rows",
     "mpc_judge",
     "mpc_trials",

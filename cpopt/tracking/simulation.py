@@ -35,56 +35,85 @@ DIVERGED_VELOCITY = 100.0
 """... and so is one with a joint faster than this [rad/s or m/s] or a non-finite state."""
 
 
+NOISE_ROWS = 8
+"""Rows of a period's noise: the six measured joint states', the two applied torques'."""
+
+
 @dataclass(frozen=True)
 class Noise:
-    """Measurement noise: standard deviations of the measured joint states, and a seed.
+    """Measurement and torque noise: standard deviations, and a seed.
 
     Attributes
     ----------
     position : tuple of float
-        Of q1, q2, q3 [rad or m].
+        Of measured q1, q2, q3 [rad or m].
     velocity : tuple of float
-        Of q1dot, q2dot, q3dot [rad/s or m/s].
+        Of measured q1dot, q2dot, q3dot [rad/s or m/s].
     seed : int
-        Seed of the noise; run i of a batch draws from ``numpy.random.default_rng([seed, i])``.
+        Seed of the noise; run i of a batch draws its measurement noise from
+        ``numpy.random.default_rng([seed, i])``, its torque noise from
+        ``default_rng([seed, i, 1])`` (so adding torque noise leaves the measurement noise).
+    torque : tuple of float
+        Of the torques applied by motors 1, 2, drawn once per control period [N m or N].
     """
 
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
     velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     seed: int = 0
+    torque: tuple[float, float] = (0.0, 0.0)
 
     @property
     def std(self) -> np.ndarray:
-        """The six standard deviations."""
+        """The six standard deviations of the measured joint states."""
         return np.array([*self.position, *self.velocity], float)
 
+    def generators(self, run: int) -> tuple[np.random.Generator, np.random.Generator]:
+        """Run ``run``'s generators of measurement and torque noise."""
+        rng = np.random.default_rng
+        return rng([self.seed, run]), rng([self.seed, run, 1])
 
-@lru_cache(maxsize=8)
-def step_function(controller: Controller, jit: bool = False) -> ca.Function:
+    def draw(self, generators, length: int) -> np.ndarray:
+        """``length`` periods of noise (NOISE_ROWS, length) from a run's generators."""
+        out = np.zeros((NOISE_ROWS, length))
+        std, torque = self.std, np.asarray(self.torque, float)
+        if std.any():
+            out[:6] = (generators[0].standard_normal((length, 6)) * std).T
+        if torque.any():
+            out[6:] = (generators[1].standard_normal((length, 2)) * torque).T
+        return out
+
+
+@lru_cache(maxsize=64)
+def step_function(controller: Controller, jit: bool = False, delay: int = 0) -> ca.Function:
     """``(X, c, r, noise, p) -> (X_next, c_next, tau, qdd, cp, saturated)`` for one period.
 
-    X (6,) is the plant's joint state, c (2,) the controller's, r the controller's data of the
-    instant, noise (6,) the measurement errors, p the plant's parameters; tau (2,) is the
-    torque held over the period after saturation, qdd (3,) the plant's accelerations at the
-    instant, cp (2,) its CP through the model's kinematics, saturated 1 when a torque was
-    clipped. With ``jit`` the function is compiled to C once and cached on disk
-    (:func:`compiled_step`); without a compiler it runs interpreted.
+    X (6,) is the plant's joint state, c the controller's (2,) followed by the ``delay``
+    commands still on their way to the motors (2 delay,), r the controller's data of the
+    instant, noise (NOISE_ROWS,) the measurement errors and the torque noise, p the plant's
+    parameters; tau (2,) is the torque applied over the period (saturated, times the gains,
+    plus the noise), qdd (3,) the plant's accelerations at the instant, cp (2,) its CP through
+    the model's kinematics, saturated 1 when a torque was clipped. With ``jit`` the function
+    is compiled to C once and cached on disk (:func:`compiled_step`); without a compiler it
+    runs interpreted.
     """
     ref = controller.reference
     model = ref.arm
     law = controller.law()
     X = ca.SX.sym("X", 6)
-    c = ca.SX.sym("c", 2)
+    c = ca.SX.sym("c", 2 + 2 * delay)
     r = ca.SX.sym("r", law.size1_in(0))
-    noise = ca.SX.sym("noise", 6)
+    noise = ca.SX.sym("noise", NOISE_ROWS)
     p = ca.SX.sym("p", len(PARAMETER_NAMES))
-    measured = X + noise
-    tau_cmd, c_next = law(r, measured[0:3], measured[3:6], c)
+    measured = X + noise[:6]
+    tau_cmd, c_next = law(r, measured[0:3], measured[3:6], c[:2])
+    c_next = ca.vertcat(c_next, c[4:], tau_cmd) if delay else c_next
+    sent = c[2:4] if delay else tau_cmd  # the command that reaches the motors now
     period = plant_period(model.kind, model.base, model.gravity, ref.period)
-    X_next, qdd, tau = period(X, tau_cmd, p)
+    X_next, qdd, tau = period(X, sent, p, noise[6:])
     s = kinematic_functions(model)["pose"](X[0:3])
     cp = s[0:2] + model.K * ca.vertcat(ca.cos(s[2]), ca.sin(s[2]))
-    saturated = ca.sum1(ca.fabs(tau_cmd - tau)) > 0
+    clipped = ca.fmin(ca.fmax(sent, -p[18:20]), p[18:20])
+    saturated = ca.sum1(ca.fabs(sent - clipped)) > 0
     ins, outs = [X, c, r, noise, p], [X_next, c_next, tau, qdd, cp, saturated]
     names = (["X", "c", "r", "noise", "p"], ["X_next", "c_next", "tau", "qdd", "cp", "saturated"])
     step = ca.Function("step", ins, outs, *names)
@@ -208,11 +237,15 @@ def _first_bad(X_next: np.ndarray, cp_err: np.ndarray) -> np.ndarray:
 
 
 def _noise_block(noise: Noise, runs: np.ndarray, rngs: list, length: int) -> np.ndarray:
-    """Measurement errors (6, length * len(runs)), run after run."""
-    std = noise.std
-    if not std.any():
-        return np.zeros((6, length * runs.size))
-    return np.hstack([(rngs[i].standard_normal((length, 6)) * std).T for i in runs])
+    """Measurement and torque noise (NOISE_ROWS, length * len(runs)), run after run."""
+    return np.hstack([noise.draw(rngs[i], length) for i in runs])
+
+
+def initial_controller_state(controller: Controller, delay: int) -> np.ndarray:
+    """The controller's initial state (2 + 2 delay,): its own, then the commands on their
+    way to the motors, the plan's initial torque (the arm held at its start before t0)."""
+    held = np.tile(np.asarray(controller.reference.tau[0], float), delay)
+    return np.r_[np.asarray(controller.initial_state(), float).ravel(), held]
 
 
 class _Totals:
@@ -255,6 +288,7 @@ def simulate_batch(
     noise: Noise | None = None,
     jit: bool = False,
     log: bool = False,
+    delay: int = 0,
 ) -> Batch:
     """Run a controller on plants with the given parameters, from the plan's start state.
 
@@ -274,16 +308,18 @@ def simulate_batch(
         runs, and for a plan tracked again in a later process).
     log : bool
         Keep every period of a single run (N = 1) in ``Batch.log``.
+    delay : int
+        Actuation delay in control periods (:meth:`cpopt.tracking.plant.Plant.delay_steps`).
     """
     ref = controller.reference
     noise = noise or Noise()
     P = np.atleast_2d(np.asarray(parameters, float)).T
     N, horizon, t = P.shape[1], controller.horizon, controller.times
-    step = step_function(controller, jit)
+    step = step_function(controller, jit, delay)
     schedule = controller.schedule()
-    rngs = [np.random.default_rng([noise.seed, i]) for i in range(N)]
+    rngs = [noise.generators(i) for i in range(N)]
     X = np.tile(ref.x[0][:, None], (1, N))
-    c = np.tile(controller.initial_state()[:, None], (1, N))
+    c = np.tile(initial_controller_state(controller, delay)[:, None], (1, N))
     active = np.arange(N)
     totals = _Totals(N)
     logs: dict[str, list] = {k: [] for k in ("x", "qdd", "tau", "saturated", "cp", "progress")}
@@ -316,7 +352,7 @@ class _Chunk:
     progress reached the plan's end) and the figures the totals take."""
 
     X_next: np.ndarray  # (6, A, length)
-    c_next: np.ndarray  # (2, A, length)
+    c_next: np.ndarray  # (2 + 2 delay, A, length)
     qdd: np.ndarray
     cp: np.ndarray
     s: np.ndarray  # the plan's instant tracked, in periods (A, length + 1)
@@ -337,8 +373,8 @@ class _Chunk:
             np.asarray(o).reshape(o.shape[0], A, length) for o in out
         )
         k = np.arange(k0, k0 + length + 1)
-        c_all = np.concatenate([c[:, :, None], c_next], axis=2)  # (2, A, length + 1)
-        s = controller.progress(k, c_all)
+        c_all = np.concatenate([c[:, :, None], c_next], axis=2)  # (2 + 2 delay, A, length + 1)
+        s = controller.progress(k, c_all[:2])
         cp_err = np.linalg.norm(cp - plan_cp_at(ref, s[:, :-1]), axis=0)
         bad = _first_bad(X_next, cp_err)
         done = _first(s[:, 1:] >= ref.steps - 1e-9)
