@@ -132,3 +132,20 @@ def test_xi_and_eta_at_the_replan_instant_keep_the_problems_bounds(transfer):
     assert r.status == "solved"
     xi, eta = r.plan.nodes[0].xi, r.plan.nodes[0].eta
     assert -40.0 <= xi <= 40.0 and -200.0 <= eta <= 200.0
+
+
+def test_a_plan_out_of_reach_between_its_samples_is_not_reachable(transfer):
+    """A re-plan is handed back as solved only when it can be sampled: the same CP plan on an
+    arm with its first link halved leaves the reach (the base of link 3 is 1.18-2.43 m from
+    the shoulder; the shortened arm reaches 0.75-2.25 m), and is refused (``out_of_reach``)."""
+    from cpopt.flatopt.replan import reachable, verdict
+
+    solution, _ = transfer
+    plan = solution.plan
+    assert reachable(plan)
+    links = list(plan.arm.links)
+    links[0] = replace(links[0], length=0.5 * links[0].length)
+    short = replace(plan, arm=replace(plan.arm, links=tuple(links)))
+    assert not reachable(short)
+    assert verdict("solved", short, 0.5) == "out_of_reach"
+    assert verdict("solved", plan, 0.5) == "solved"

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..closedform.plan import CPPlan
 from ..closedform.trajectory import Trajectory, sample
+from ..model.kinematics import ReachError
 from ..problem import Problem
 from ..runtime.solver import run_nlp
 from .remaining_motion import Remaining, remaining, shifted
@@ -69,7 +70,8 @@ class Replan:
     status : str
         ``solved``; ``holding`` (less than :data:`~cpopt.flatopt.remaining_motion.NEAR_NODE` left:
         the plan holds the goal); ``late`` (solved after the deadline); ``gamma_margin`` (solved
-        on its grid, |gamma| below gamma_min between its points); or the solver's status
+        on its grid, |gamma| below gamma_min between its points); ``out_of_reach`` (solved on
+        its grid, out of the arm's reach between its points); or the solver's status
         (``time_limit``, ``max_iterations``, ``infeasible``, ``not_converged``).
     plan : CPPlan
         The plan to follow from now on, in the plan's clock: the new one when solved, else the
@@ -205,14 +207,29 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, 
     return run, shifted(plan, rest.t0), multipliers
 
 
+def reachable(plan: CPPlan) -> bool:
+    """True when the plan's joint motion exists at every point :func:`~cpopt.closedform.
+    trajectory.sample` takes: a re-plan solved on its grid may leave the arm's reach between
+    the grid's points, and a plan handed back as solved must be one the caller can sample (and
+    re-plan from)."""
+    try:
+        sample(plan)
+    except ReachError:
+        return False
+    return True
+
+
 def verdict(status: str, new: CPPlan | None, gamma_min: float) -> str:
     """A re-plan's status from the solver's: ``not_converged`` when its iterate makes no plan,
-    ``gamma_margin`` when the plan's certified |gamma| is below ``gamma_min`` [m/s^2]."""
+    ``gamma_margin`` when the plan's certified |gamma| is below ``gamma_min`` [m/s^2],
+    ``out_of_reach`` when it leaves the arm's reach between its samples (:func:`reachable`)."""
     if status != "solved":
         return status
     if new is None:
         return "not_converged"
-    return "gamma_margin" if new.min_abs_gamma()[0] < gamma_min * (1 - GAMMA_TOLERANCE) else status
+    if new.min_abs_gamma()[0] < gamma_min * (1 - GAMMA_TOLERANCE):
+        return "gamma_margin"
+    return status if reachable(new) else "out_of_reach"
 
 
 def replan(
@@ -291,6 +308,7 @@ __all__ = [
     "REPLAN_ITERATIONS",
     "Multipliers",
     "Replan",
+    "reachable",
     "replan",
     "shifted_seed",
     "start_vector",
