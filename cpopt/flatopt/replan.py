@@ -92,6 +92,9 @@ class Replan:
         The newest solved re-plan's multipliers, for the next re-plan's ``warm``.
     message : str
         The solver's own word (Ipopt's return status).
+    samples : Trajectory or None
+        The new plan sampled (the reach check's), for the next re-plan's ``seed``; None when
+        the previous plan is kept.
     """
 
     status: str
@@ -104,6 +107,7 @@ class Replan:
     time_s: float = 0.0
     multipliers: Multipliers | None = None
     message: str = ""
+    samples: Trajectory | None = None
 
     @property
     def solved(self) -> bool:
@@ -207,29 +211,32 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, 
     return run, shifted(plan, rest.t0), multipliers
 
 
-def reachable(plan: CPPlan) -> bool:
-    """True when the plan's joint motion exists at every point :func:`~cpopt.closedform.
-    trajectory.sample` takes: a re-plan solved on its grid may leave the arm's reach between
-    the grid's points, and a plan handed back as solved must be one the caller can sample (and
-    re-plan from)."""
+def reachable(plan: CPPlan) -> Trajectory | None:
+    """The plan sampled (:func:`~cpopt.closedform.trajectory.sample`) when its joint motion
+    exists at every point, else None: a re-plan solved on its grid may leave the arm's reach
+    between the grid's points, and a plan handed back as solved must be one the caller can
+    sample (and re-plan from: the samples are the next re-plan's ``seed``)."""
     try:
-        sample(plan)
+        return sample(plan)
     except ReachError:
-        return False
-    return True
+        return None
 
 
-def verdict(status: str, new: CPPlan | None, gamma_min: float) -> str:
+def verdict(
+    status: str, new: CPPlan | None, gamma_min: float, samples: Trajectory | None = None
+) -> str:
     """A re-plan's status from the solver's: ``not_converged`` when its iterate makes no plan,
     ``gamma_margin`` when the plan's certified |gamma| is below ``gamma_min`` [m/s^2],
-    ``out_of_reach`` when it leaves the arm's reach between its samples (:func:`reachable`)."""
+    ``out_of_reach`` when it leaves the arm's reach between its samples (:func:`reachable`;
+    ``samples``: what it gave, when the caller has it)."""
     if status != "solved":
         return status
     if new is None:
         return "not_converged"
     if new.min_abs_gamma()[0] < gamma_min * (1 - GAMMA_TOLERANCE):
         return "gamma_margin"
-    return status if reachable(new) else "out_of_reach"
+    samples = reachable(new) if samples is None else samples
+    return status if samples is not None else "out_of_reach"
 
 
 def replan(
@@ -285,7 +292,8 @@ def replan(
         return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
     seed = sample(plan) if seed is None else seed
     run, new, multipliers = _solve(rest, seed, deadline, iterations, warm, torque_limit)
-    status = verdict(run.status, new, problem.spec.optimizer.gamma_min)
+    samples = reachable(new) if run.status == "solved" and new is not None else None
+    status = verdict(run.status, new, problem.spec.optimizer.gamma_min, samples)
     elapsed = time.perf_counter() - tic
     if status == "solved" and elapsed > deadline_s:
         status = "late"
@@ -301,6 +309,7 @@ def replan(
         time_s=elapsed,
         multipliers=multipliers,
         message=run.return_status,
+        samples=samples if ok else None,
     )
 
 

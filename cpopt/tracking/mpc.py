@@ -207,8 +207,9 @@ class FlatMPC:
         rate = steps / (ref0.t[-1] - ref0.t[k])  # the rate that lands on the same instants
         return TVLQRController(reference(plan, rate), self.Q, self.R, self.Qf)
 
-    def replan_at(self, k: int, measured: np.ndarray, newest, warm) -> Replan:
-        """The re-plan from the measured joint state (6,) at global instant k."""
+    def replan_at(self, k: int, measured: np.ndarray, newest, warm, samples=None) -> Replan:
+        """The re-plan from the measured joint state (6,) at global instant k; ``samples``:
+        ``newest`` sampled, when it is a re-plan (its :attr:`Replan.samples`)."""
         t = float(self.reference.t[k])
         return replan(
             self.problem,
@@ -217,7 +218,7 @@ class FlatMPC:
             measured[:3],
             measured[3:],
             deadline_s=self.settings.wall_deadline(),
-            seed=self.seed if newest is self.plan else None,
+            seed=self.seed if newest is self.plan else samples,
             warm=warm,
             free_compensator=self.settings.free_compensator,
             torque_limit=self.motors(),
@@ -250,7 +251,7 @@ class _Loop:
         self.delay_steps = delay
         self.every, self.delay = mpc.settings.steps(mpc.period)
         self.current = Stretch(mpc.plan, mpc.first, 0)
-        self.newest, self.warm = mpc.plan, None
+        self.newest, self.warm, self.samples = mpc.plan, None, None
         self.pending: list[tuple[int, Stretch]] = []
         self.replans: list[Replan] = []
         self.applied = 0
@@ -260,17 +261,17 @@ class _Loop:
         return self.noise.draw(self.generators, length)
 
     def _replan(self, k: int, X: np.ndarray, measurement: np.ndarray) -> None:
-        result = self.mpc.replan_at(k, X + measurement, self.newest, self.warm)
+        result = self.mpc.replan_at(k, X + measurement, self.newest, self.warm, self.samples)
         if result.solved:
             try:
                 controller = self.mpc.controller_for(result.plan, k)
-            except ReachError:  # solved on its samples, out of reach between them
+            except ReachError:  # within reach on sample's points, not on the tracking grid
                 result = replace(result, status="out_of_reach", plan=self.newest)
                 result = replace(result, kept_previous=True)
         self.replans.append(result)
         if result.solved:
             self.warm = result.multipliers
-            self.newest = result.plan
+            self.newest, self.samples = result.plan, result.samples
             self.pending.append((k + self.delay, Stretch(result.plan, controller, k)))
 
     def _next_event(self, k: int, horizon: int) -> int:
