@@ -260,46 +260,60 @@ def hermite_simpson(
     knots, index, phase = _intervals(problem, intervals, switches)
     n = knots.size - 1
     steps = _knots_at(knots, switches)
-    X, M = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n)
     torque = Torques(n, linear=signs is not None, steps=steps)
-    h = ca.DM(np.diff(knots)).T
-    g, lbg, ubg = _collocation_rows(problem, X, M, torque, h, index, branch)
+    X, M = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n)
+    nlp, lbg, ubg = _nlp(problem, X, M, knots, index, torque, branch, w["torque"])
     if signs is not None:
         at_switch = np.zeros(n + 1, bool)
         at_switch[steps] = switch_ceiling is not None
         sigma = np.asarray(signs, float)[phase]
         rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, switch_ceiling)
-        g += rows
-        lbg += lower
-        ubg += upper
-    nlp = {
-        "x": ca.vertcat(ca.vec(X), torque.variables, ca.vec(M)),
-        "f": w["torque"] * torque.integral(h),
-        "g": ca.vertcat(*g),
-    }
+        nlp["g"], lbg, ubg = ca.vertcat(nlp["g"], *rows), lbg + lower, ubg + upper
     options = {"expand": False, "print_time": False}
     solver = ca.nlpsol("seed", "ipopt", nlp, {**options, "ipopt": _ipopt(problem, limit, deadline)})
-    q, qd, tau = cold_guess(problem, knots) if guess is None else warm_guess(guess, knots)
-    states = np.column_stack([q, qd])
-    middle = 0.5 * (states[:-1] + states[1:])
-    x0 = np.r_[states.ravel(), torque.guess(tau), middle.ravel()]
-    lbx, ubx = _box(problem, n, torque.count)
-    lbx, ubx = np.r_[lbx, np.full(6 * n, -np.inf)], np.r_[ubx, np.full(6 * n, np.inf)]
+    x0, lbx, ubx = _start(problem, knots, torque, guess)
     built = time.perf_counter()
     solution = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solved = time.perf_counter()
     check_stop()
     said, status, iterations = read_stats(solver.stats())
     plan = _read_plan(problem, knots, index, torque, np.asarray(solution["x"]).ravel())
+    what = "no gamma constraint" if signs is None else f"signs of gamma {tuple(signs)}"
     stats = SolverStats(
         iterations=iterations,
         build_time_s=built - tic,
         solve_time_s=solved - built,
-        message=f"Ipopt: {said} (Hermite-Simpson, {n} intervals, "
-        + ("no gamma constraint)" if signs is None else f"signs of gamma {tuple(signs)})"),
+        message=f"Ipopt: {said} (Hermite-Simpson, {n} intervals, {what})",
         objective=float(solution["f"]),
     )
     return status, plan, stats
+
+
+def _nlp(problem: Problem, X, M, knots: np.ndarray, index, torque: Torques, branch, weight):
+    """The NLP without a pattern, for nlpsol: states X at the knots and M at the midpoints, the
+    torques, the collocation, limit and branch rows (:func:`_collocation_rows`), ``weight``
+    times the torque integral; and the rows' bounds."""
+    h = ca.DM(np.diff(knots)).T
+    g, lbg, ubg = _collocation_rows(problem, X, M, torque, h, index, branch)
+    nlp = {
+        "x": ca.vertcat(ca.vec(X), torque.variables, ca.vec(M)),
+        "f": weight * torque.integral(h),
+        "g": ca.vertcat(*g),
+    }
+    return nlp, lbg, ubg
+
+
+def _start(problem: Problem, knots: np.ndarray, torque: Torques, guess):
+    """The initial vector and the variables' bounds: the guess (cold between the nodes when
+    None) at the knots, the midpoints' states halfway, the torques per :class:`Torques`."""
+    n = knots.size - 1
+    q, qd, tau = cold_guess(problem, knots) if guess is None else warm_guess(guess, knots)
+    states = np.column_stack([q, qd])
+    middle = 0.5 * (states[:-1] + states[1:])
+    x0 = np.r_[states.ravel(), torque.guess(tau), middle.ravel()]
+    lbx, ubx = _box(problem, n, torque.count)
+    lbx, ubx = np.r_[lbx, np.full(6 * n, -np.inf)], np.r_[ubx, np.full(6 * n, np.inf)]
+    return x0, lbx, ubx
 
 
 def _read_plan(problem: Problem, knots, index, torque: Torques, xs: np.ndarray) -> JointPlan:
