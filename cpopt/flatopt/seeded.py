@@ -249,13 +249,22 @@ class Run:
             self.shaped[pattern] = shaped
         return self.shaped[pattern]
 
+    def priced(self, pattern: Pattern) -> float:
+        """The pattern's patterned seed's objective over the solved bound's (NaN without
+        either, or for a bound that is not positive): what the coarse collocation says the
+        pattern costs against one sign (both torque integrals: the only objective a patterned
+        seed takes)."""
+        shaped = self.patterned(pattern)
+        if shaped is None or self.bound is None or self.bound.status != "solved":
+            return math.nan
+        if not self.bound.objective > 0:
+            return math.nan
+        return shaped.report.objective / self.bound.objective
+
     def hopeless(self, pattern: Pattern) -> bool:
         """True when the pattern's patterned seed costs more than :data:`HOPELESS` times the
         solved bound: its flat plan, restricted further, will not beat the bound."""
-        shaped = self.patterned(pattern)
-        if shaped is None or self.bound is None or self.bound.status != "solved":
-            return False
-        return shaped.report.objective > HOPELESS * self.bound.objective
+        return self.priced(pattern) > HOPELESS
 
     def promising(self, pattern: Pattern) -> bool:
         """True when the pattern's patterned seed costs less than the solved bound: the coarse
@@ -263,10 +272,7 @@ class Run:
         :data:`PROMISING_EARLIEST` iterations on. Abandoned earlier, random draws lost runs that
         then solved below it: an RRR transfer at iteration 29 (solves at 0.48 x the bound),
         another at 44 (0.93 x)."""
-        shaped = self.patterned(pattern)
-        if shaped is None or self.bound is None or self.bound.status != "solved":
-            return False
-        return shaped.report.objective < self.bound.objective
+        return self.priced(pattern) < 1.0
 
     def late(self) -> bool:
         """True once the deadline has passed or the stages with switches have spent their
