@@ -318,6 +318,18 @@ def state_at(
     return z
 
 
+INSIDE = 0.02
+"""How far inside a freed value's bounds a seeded value is clipped [fraction of the range]."""
+
+
+def inside(lo: float, hi: float) -> tuple[float, float]:
+    """The bounds [lo, hi] moved inside by :data:`INSIDE` of the range (finite ones)."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return lo, hi
+    d = INSIDE * (hi - lo)
+    return lo + d, hi - d
+
+
 class PatternedTrajectory(Trajectory):
     """A patterned seed's samples (:func:`patterned_seed`): its torques continuous but at its
     switches, where :func:`seeded_values` reads it one-sided."""
@@ -353,7 +365,7 @@ def seeded_values(
             key = f"{name}.{field}"
             if key in problem.free:
                 lo, hi = problem.free[key]
-                values[key] = float(np.clip(value, lo, hi))
+                values[key] = float(np.clip(value, *inside(lo, hi)))
     if not fixed_times and "duration" in problem.free:
         values["duration"] = float(traj.t[-1])
     return values
