@@ -62,6 +62,20 @@ def _intervals(
     return knots, index, np.array(phase)
 
 
+def held_ends(problem: Problem, signs) -> tuple[bool, bool]:
+    """Whether the start and the goal are held at the holding torque by a flat plan with these
+    signs of gamma (its first and last phases'; :func:`cpopt.flatopt.holding.holding_pattern`)."""
+    from ..flatopt.holding import holding_possible, rest_ends
+
+    if not problem.spec.optimizer.smooth_torque:
+        return False, False
+    rest, last = rest_ends(problem), len(problem.nodes) - 1
+    return (
+        rest[0] and holding_possible(problem, int(signs[0]), 0),
+        rest[last] and holding_possible(problem, int(signs[-1]), last),
+    )
+
+
 def _check(problem: Problem) -> dict:
     w = weights(problem.spec.optimizer.objective)
     if set(w) - {"torque"}:
@@ -166,6 +180,23 @@ def _gamma_rows(problem: Problem, X, M, torque, sigma: np.ndarray, at_switch, ce
     return [ca.vec(ca.vertcat(*rows))], [lower], [upper.ravel(order="F")]
 
 
+def _held_rows(problem: Problem, X, torque: Torques, held: tuple[bool, bool]) -> tuple:
+    """At a held rest end (``held``: the start's and the goal's, :func:`cpopt.flatopt.holding.
+    holding_pattern`) the actuated joints' accelerations are zero: the torque there is the
+    holding torque, as the flat plan's xi = 0 with the base still makes it. Without these rows a
+    patterned seed of a random RRR swing-up ended at gamma = 2.5 m/s^2 where its flat plan must
+    end at g0, and the fit of its last phase swung gamma through zero (link 3 turned by 3
+    rad). Returns the rows, their lower and upper bounds."""
+    rhs = state_derivative(problem.arm)
+    rows = []
+    if held[0]:
+        rows.append(rhs(X[:, 0], torque.start[:, 0])[3:5])
+    if held[1]:
+        rows.append(rhs(X[:, -1], torque.end[:, -1])[3:5])
+    zeros = np.zeros(2 * len(rows))
+    return [ca.vertcat(*rows)] if rows else [], [zeros] if rows else [], [zeros] if rows else []
+
+
 def _collocation_rows(problem: Problem, X, M, torque, h, index, branch: float) -> tuple:
     """The Hermite-Simpson conditions (the midpoint state of the cubic through the knots,
     Simpson's rule), the torques' joins, the nodes' fields and the arm's branch: the rows, their
@@ -268,6 +299,8 @@ def hermite_simpson(
         at_switch[steps] = switch_ceiling is not None
         sigma = np.asarray(signs, float)[phase]
         rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, switch_ceiling)
+        held = _held_rows(problem, X, torque, held_ends(problem, signs))
+        rows, lower, upper = rows + held[0], lower + held[1], upper + held[2]
         nlp["g"], lbg, ubg = ca.vertcat(nlp["g"], *rows), lbg + lower, ubg + upper
     options = {"expand": False, "print_time": False}
     solver = ca.nlpsol("seed", "ipopt", nlp, {**options, "ipopt": _ipopt(problem, limit, deadline)})
