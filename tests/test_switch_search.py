@@ -88,8 +88,10 @@ def test_the_seeded_transfer_reaches_the_unconstrained_cost(transfer):
     assert figures["method"] == "seed"
     assert {"seed", "flat", "polish"} <= set(figures)
     assert figures["flat"]["iterations"] > 0 and figures["seed"]["time_s"] > 0
-    # 40427 is below the seed's 40741: no neighbour pattern is tried
-    assert figures["polish"]["patterns"] == 0 and "no polish" in figures["summary"]
+    # 40427 is below the seed's 40741: no neighbour pattern is tried (the summary says so, or
+    # that the flat run spent the stages' iterations: 466-573 of 500, by the start's fit)
+    assert figures["polish"]["patterns"] == 0
+    assert "no polish" in figures["summary"] or "spent their 500" in figures["summary"]
 
 
 def test_the_polish_is_skipped_only_near_the_seeds_cost(transfer, transfer_seed):
@@ -137,13 +139,12 @@ def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_s
         # crashed the greedy once; its seed crosses nowhere: the one-sign bound is the plan
         (ROOT / "problems" / "rpr_transfer.yaml", "seed", "one_sign"),
         (ROOT / "problems" / "rpr_transfer.yaml", "greedy", "greedy"),
-        # the seed's two switches (1.36, 1.80 s) did not solve from the seed (1094 iterations
-        # there), the one-sign bound 4379 dominates them at iteration 99 (their patterned seed
-        # is cheaper than the bound: judged from iteration 100 on); an alternative near the
-        # via state (1.2 s) solves at 484.1 or 501.5, two local optima which the rounding
-        # picks (484.1 here, 501.5 in CI's fresh environment; issue 30: the greedy search had
+        # the seed's two switches (1.36, 1.80 s) solve at 479.3 from its patterned seed fitted
+        # to the link's pose (flatopt.pose_fit); before that fit they did not (1094 iterations
+        # from the seed) and an alternative near the via state (1.2 s) solved at 484.1 or
+        # 501.5, two local optima which the rounding picked (issue 30: the greedy search had
         # kept one sign)
-        (ROOT / "problems" / "prr_swing_up.yaml", "seed", "near"),
+        (ROOT / "problems" / "prr_swing_up.yaml", "seed", ("seed", "near")),
     ],
     ids=["rpr transfer seed", "rpr transfer greedy", "prr swing-up seed"],
 )
@@ -154,12 +155,12 @@ def test_no_search_raises_on_an_unseen_problem(path, search, method):
     assert result.plan is not None
     d = result.solver.details
     figures = d.as_dict()["search"]
-    assert figures["method"] == method
+    assert figures["method"] in ((method,) if isinstance(method, str) else method)
     # never costlier than a one-sign plan the search solved (the bound, issue 30)
     one_sign = [a.objective for a in d.sign_choices if a.status == "solved" and not a.switch_times]
     assert result.status == "solved" and result.solver.objective <= min(one_sign) * (1 + 1e-9)
-    if method == "near":
-        assert 0.99 * 484.1 < result.solver.objective < 1.01 * 501.5
+    if path.name == "prr_swing_up.yaml":
+        assert 0.99 * 479.3 < result.solver.objective < 1.01 * 501.5
         assert result.solver.objective < 0.2 * min(one_sign)
 
 

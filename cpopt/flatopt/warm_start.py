@@ -19,6 +19,7 @@ from ..closedform.trajectory import Trajectory
 from ..model import flat
 from ..problem import Problem
 from .path_timing import initial_blocks, timing_guess, unpack
+from .pose_fit import LinearRows, PoseTarget, refined
 from .seed import PUSH, SIDE, seeded_values
 from .transcribe import FlatNLP, coefficient_count
 
@@ -157,12 +158,15 @@ def seeded_guess(
     signs: tuple[int, ...],
     seed: Trajectory,
     orders: tuple[int, ...] | None = None,
+    pose: bool = True,
 ) -> np.ndarray:
     """The whole initial decision vector from a seed trajectory (a coarse collocation, or a
     plan already solved): freed node values from its state (:func:`cpopt.flatopt.seed.
     seeded_values`), and each phase's free coefficients fitted to its CP by least squares with
     the eliminated boundary coefficients, which the node values fix, kept; ``orders``: the CP
-    derivative orders fitted (None: those of :func:`targets`)."""
+    derivative orders fitted (None: those of :func:`targets`); ``pose`` False skips the
+    refinement of a collocation seed's fit to the link's pose
+    (:func:`cpopt.flatopt.pose_fit.refined`)."""
     o = problem.spec.optimizer
     values = seeded_values(problem, signs, seed)
     p = nlp.parameters(values)
@@ -185,7 +189,8 @@ def seeded_guess(
         C = np.array(outs[1 + k], float)
         span = (times[k], times[k + 1])
         least = signs[k] * (o.gamma_min + PUSH)
-        C[free] = fitted(basis, C, free, seed, span, least, orders)
+        arm = problem.arm if pose else None
+        C[free] = fitted(basis, C, free, seed, span, least, orders, arm)
         for b, at in blocks:
             core[at : at + b.size] = C[b.rows[0] : b.rows[1]].T.ravel()
     return nlp.complete(core, p)
@@ -245,14 +250,17 @@ def fitted(
     span: tuple[float, float],
     least: float,
     orders: tuple[int, ...] | None = None,
+    arm=None,
 ) -> np.ndarray:
     """The free rows of a phase's coefficients (the others fixed) that fit the seed's CP and its
     derivatives on ``span`` [s] (:func:`targets`, those of ``orders`` among them when any
-    are) by least squares."""
+    are) by least squares; with the ``arm`` (its K and gravity), a collocation seed's fit is
+    then refined to keep the third link's pose (:func:`cpopt.flatopt.pose_fit.refined`)."""
     h = span[1] - span[0]
     inside = SIDE / h  # the phase's own limits at its ends: a plan holds a reset's time twice
     s = np.linspace(inside, 1.0 - inside, FIT_SAMPLES)
-    if not reproduced(seed, span[0] + s * h, least):
+    exact = reproduced(seed, span[0] + s * h, least)
+    if not exact:
         s = np.linspace(0.0, 1.0, FIT_SAMPLES)  # a collocation seed: continuous at the ends
     gains = [float(np.abs(basis.matrix(s, r)).max()) for r in range(5)]
     rows, rhs = [], []
@@ -263,5 +271,21 @@ def fitted(
         B = basis.matrix(s, order) / h**order / unit
         rows.append(B[:, free])
         rhs.append(target / unit - B[:, ~free] @ C[~free])
-    solution, *_ = np.linalg.lstsq(np.vstack(rows), np.vstack(rhs), rcond=None)
-    return solution
+    A, b = np.vstack(rows), np.vstack(rhs)
+    solution, *_ = np.linalg.lstsq(A, b, rcond=None)
+    if exact or arm is None or orders is not None:
+        return solution
+    t = span[0] + s * h
+    B0, B2 = basis.matrix(s, 0), basis.matrix(s, 2) / h**2
+    lin = LinearRows(
+        A, b, B0[:, free], B2[:, free], B0[:, ~free] @ C[~free], B2[:, ~free] @ C[~free]
+    )
+    pose = PoseTarget(
+        base=np.column_stack([np.interp(t, seed.t, seed.z[:, i]) for i in range(2)]),
+        theta=np.interp(t, seed.t, seed.z[:, 2]),
+        sign=int(np.sign(least)),
+        least=abs(least),
+        K=arm.K,
+        gravity=arm.gravity,
+    )
+    return refined(solution, lin, pose)
