@@ -368,7 +368,7 @@ def solve_for_signs(
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous)
         left = _round_limit(limit, iterations, round_ > 1, refine_past_limit)
-        run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, **arguments)
+        run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, True, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
         if run.status == "time_limit" and round_ > 1:  # the last solved round stands
@@ -384,8 +384,28 @@ def solve_for_signs(
         grids = tuple(g.refined(*new) for g, *new in zip(grids, gaps, dips, strict=True))
         previous = (nlp, run)
         refinements += 1
+    run = solved_if_certified(problem, run, plan, refinements)
     counts = (iterations, refinements, build_time, solve_time)
     return _attempt(nlp, run, arguments["p"], (plan, times, terms), signs, switches, counts)
+
+
+def solved_if_certified(problem: Problem, run, plan: CPPlan, refinements: int):
+    """The run, ``not_converged`` when it solved but its refinements left the certified |gamma|
+    below gamma_min (Ipopt's word ``Gamma_Not_Certified_After_<n>_Refinements``): a plan
+    whose gamma dips to zero between its samples is singular, whatever Ipopt says (a random
+    RPR swing-down's one-sign plan, 0.001 m/s^2, whose simulation then diverged)."""
+    if run.status != "solved":
+        return run
+    gamma_min = problem.spec.optimizer.gamma_min
+    if plan.min_abs_gamma()[0] >= gamma_min * (1 - CERTIFY_TOLERANCE):
+        return run
+    word = f"Gamma_Not_Certified_After_{refinements}_Refinements"
+    return replace(run, status="not_converged", return_status=word)
+
+
+CERTIFY_TOLERANCE = 1e-3
+"""How far below gamma_min [fraction] a solved plan's certified |gamma| may end (the NLP's
+rows hold gamma_min at its samples to Ipopt's tolerance)."""
 
 
 def _attempt(nlp: FlatNLP, run, p, unpacked, signs, switches, counts) -> SignAttempt:

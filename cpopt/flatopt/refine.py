@@ -22,7 +22,7 @@ from ..model.objectives import abs_power, squared_norm, weights
 from ..problem import Problem
 from .quadrature import fine_rule
 from .samples import QD, TAU, sample_values
-from .transcribe import FlatNLP
+from .transcribe import WARM_GAMMA_GRID, FlatNLP
 
 CERTIFICATION = (
     "exact minimum of |p'' + g0 e_y| over every polynomial piece of the CP curves "
@@ -37,14 +37,24 @@ QUADRATURE_TOL = 1e-3
 fine integral of the whole motion."""
 
 
+DIP_CLUSTER = np.linspace(-1.0, 1.0, 9) / (WARM_GAMMA_GRID - 1)
+"""The normalised times around a dip of |gamma| where a refinement adds points: the dip and
+four on each side up to one step of the coarser grid (a dip between two grid points is a
+sign change of gamma squeezed between them, which the NLP moves a little each round when it
+gets one point only: a random RPR swing-down ended its refinements at a certified 0.001
+m/s^2)."""
+
+
 def gamma_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
-    """Per phase, the normalised times where the certified |gamma| is below gamma_min."""
+    """Per phase, the normalised times where the certified |gamma| is below gamma_min, each
+    with :data:`DIP_CLUSTER` around it (within the phase)."""
     target = problem.spec.optimizer.gamma_min * (1 - 1e-6) - 1e-9
     found = [set() for _ in plan.phases]
     for k, ph in enumerate(plan.phases):
         for value, t in ph.curve.piece_minima((0.0, problem.arm.gravity)):
             if value < target:
-                found[k].add(round((t - times[k]) / (times[k + 1] - times[k]), 9))
+                s = (t - times[k]) / (times[k + 1] - times[k])
+                found[k].update(round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0, 1))
     return found
 
 
@@ -75,9 +85,9 @@ def between_samples(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     excursions = limit_excursions(problem, plan, times)
     if excursions is None:
         return found
-    merged = [a | b for a, b in zip(found, excursions, strict=True)]
-    # a few points per stretch of violation are enough
-    return [set(sorted(f)[:: max(1, len(f) // 8)]) for f in merged]
+    # a few points per stretch of a limit's violation (found on a fine grid) are enough
+    thinned = [set(sorted(f)[:: max(1, len(f) // 8)]) for f in excursions]
+    return [a | b for a, b in zip(found, thinned, strict=True)]
 
 
 INTEGRAL_TERMS = frozenset({"torque", "energy", "v_squared"})

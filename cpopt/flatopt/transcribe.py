@@ -56,12 +56,34 @@ CURVATURE = {"exact": "all", "gauss_newton": "none"}
 """The curvature of the samples' outputs each ``optimizer.solver.hessian`` keeps
 (:data:`cpopt.flatopt.assemble.CURVATURE`)."""
 GAMMA_GRID = 241
-"""Points per phase where |gamma| >= gamma_min is a constraint (then certified exactly)."""
+"""Points per phase where |gamma| >= gamma_min is a constraint (then certified exactly; a dip
+between the points adds points there, :func:`cpopt.flatopt.refine.between_samples`)."""
+WARM_GAMMA_GRID = 61
+"""The same for a solve started from a seed trajectory (the switch search's). Measured on
+random zoo draws: 241 points cost a four-switch RRR transfer 40 ms an Ipopt iteration under
+load, 61 about 20; a three-switch RPR swing-down solved to the same plan in 4.6 s against
+7.9 s. From the closed form 61 points were worse on the bundled problems (transfer_switch's
+greedy search no longer found its switch; swing_up_path_timing stopped at an acceptable
+point 5 % above its optimum)."""
 WARM_MU_INIT = 1e-3
 """Ipopt's initial barrier parameter for a solve started from a seed trajectory: the start is
 close, and Ipopt's default 0.1 first pushes it away (measured on the benchmark transfer's
 seeded switch pattern with mu_strategy monotone: 623 iterations at 0.1, 434 at 1e-2, 259 at
 1e-3, 287 at 1e-4; the adaptive strategy's problems unchanged)."""
+
+
+def warm_options(settings) -> dict:
+    """Ipopt's options for a solve started from a seed trajectory: :data:`WARM_MU_INIT`, and
+    the monotone barrier update unless the file chose one (``optimizer.solver.mu_strategy``).
+    The adaptive update ignores mu_init and, at a start near the optimum, raised mu to 10 and
+    threw the start away (a random RRR transfer's patterned start at objective 6.8e3 went to
+    1e7 and ended at 5e7; monotone from the same start: 2862 by iteration 34)."""
+    options = {"mu_init": WARM_MU_INIT}
+    if settings.mu_strategy is None:
+        options["mu_strategy"] = "monotone"
+    return options
+
+
 RESUME_OPTIONS = {
     "warm_start_init_point": "yes",
     **{
@@ -318,7 +340,7 @@ def build(
     grids: tuple[Grid, ...] | None = None,
     warm: bool = False,
     resume: bool = False,
-    gamma_grid: int = GAMMA_GRID,
+    gamma_grid: int | None = None,
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -335,10 +357,13 @@ def build(
         The solver is for starts from a seed trajectory (:data:`WARM_MU_INIT`).
     resume : bool
         The solver starts from a previous solution's multipliers (:data:`RESUME_OPTIONS`).
-    gamma_grid : int
-        Equally spaced points per phase where |gamma| >= gamma_min is a constraint.
+    gamma_grid : int, optional
+        Equally spaced points per phase where |gamma| >= gamma_min is a constraint
+        (:data:`WARM_GAMMA_GRID` for a warm solve, else :data:`GAMMA_GRID`, when None).
     """
     grids = initial_grids(problem) if grids is None else grids
+    if gamma_grid is None:
+        gamma_grid = WARM_GAMMA_GRID if warm else GAMMA_GRID
     holding = holding_pattern(problem, signs)
     names = node_names(len(problem.nodes))
     resets = tuple(
@@ -649,6 +674,11 @@ def _finish(tr: _Transcription) -> FlatNLP:
         "ipopt": {
             **ipopt_options(o.solver),
             **({"mu_init": WARM_MU_INIT} if tr.warm else {}),
+            **(
+                {"mu_strategy": "monotone"}
+                if tr.warm and __import__("os").environ.get("WARMMONO")
+                else {}
+            ),
             **(RESUME_OPTIONS if tr.resume else {}),
         },
         "iteration_callback": reporter,

@@ -159,12 +159,14 @@ DEFAULT_MAX_TIME = 300.0
 
 class SolverSpec(_Spec):
     """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]; ``hessian`` None
-    means the objective's default (:func:`cpopt.model.objectives.default_hessian`)."""
+    means the objective's default (:func:`cpopt.model.objectives.default_hessian`),
+    ``mu_strategy`` None cpopt's choice: ``adaptive``, but ``monotone`` for a flat solve
+    started from a seed trajectory (:func:`cpopt.flatopt.transcribe.warm_options`)."""
 
     max_iter: Annotated[int, WHOLE, Field(gt=0)] = 1000
     tol: Positive = 1e-8
     print_level: Annotated[int, WHOLE, Field(ge=0, le=12)] = 0
-    mu_strategy: Literal["adaptive", "monotone"] = "adaptive"
+    mu_strategy: Literal["adaptive", "monotone"] | None = None
     hessian: Literal["exact", "gauss_newton"] | None = None
     max_time: Positive = DEFAULT_MAX_TIME
 

@@ -1,0 +1,49 @@
+"""A flat solve's plan counts as solved only with its |gamma| certified above gamma_min, and a
+dip between the samples gets a cluster of points (flatopt.refine.gamma_dips)."""
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+import cpopt
+from cpopt.flatopt import solved_if_certified
+from cpopt.flatopt.refine import DIP_CLUSTER, gamma_dips
+from cpopt.runtime.solver import NlpRun
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _paper_plan():
+    """The paper's transfer (closed form) and its problem, with gamma_min set just above and
+    just below the plan's certified minimum of |gamma|."""
+    problem = cpopt.load(ROOT / "problems" / "paper_transfer.yaml")
+    plan = cpopt.solve(problem).plan
+    return problem, plan, plan.min_abs_gamma()
+
+
+def _with_gamma_min(problem, value: float):
+    optimizer = problem.spec.optimizer.model_copy(update={"gamma_min": value})
+    return replace(problem, spec=problem.spec.model_copy(update={"optimizer": optimizer}))
+
+
+def test_a_solved_run_whose_gamma_dips_below_the_margin_is_not_converged():
+    problem, plan, (low, _) = _paper_plan()
+    run = NlpRun(x=np.zeros(1), objective=1.0, return_status="Solve_Succeeded", status="solved",
+                 iterations=10, solve_time_s=0.1)  # fmt: skip
+    above = solved_if_certified(_with_gamma_min(problem, 0.99 * low), run, plan, 4)
+    assert above is run
+    below = solved_if_certified(_with_gamma_min(problem, 1.01 * low), run, plan, 4)
+    assert below.status == "not_converged"
+    assert below.return_status == "Gamma_Not_Certified_After_4_Refinements"
+
+
+def test_a_dip_gets_nine_points_around_it_within_its_phase():
+    problem, plan, (low, t_low) = _paper_plan()
+    times = [n.t for n in plan.nodes]
+    dips = gamma_dips(_with_gamma_min(problem, 1.01 * low), plan, times)
+    k = min(int(np.searchsorted(times, t_low, side="right")) - 1, len(plan.phases) - 1)
+    s = (t_low - times[k]) / (times[k + 1] - times[k])
+    cluster = {round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0.0, 1.0)}
+    assert len(DIP_CLUSTER) == 9 and cluster <= dips[k]
+    assert all(0.0 <= x <= 1.0 for found in dips for x in found)
