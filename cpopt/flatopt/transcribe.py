@@ -673,12 +673,7 @@ def _finish(tr: _Transcription) -> FlatNLP:
         "show_eval_warnings": False,
         "ipopt": {
             **ipopt_options(o.solver),
-            **({"mu_init": WARM_MU_INIT} if tr.warm else {}),
-            **(
-                {"mu_strategy": "monotone"}
-                if tr.warm and __import__("os").environ.get("WARMMONO")
-                else {}
-            ),
+            **(warm_options(o.solver) if tr.warm else {}),
             **(RESUME_OPTIONS if tr.resume else {}),
         },
         "iteration_callback": reporter,
