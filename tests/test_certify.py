@@ -47,3 +47,18 @@ def test_a_dip_gets_nine_points_around_it_within_its_phase():
     cluster = {round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0.0, 1.0)}
     assert len(DIP_CLUSTER) == 9 and cluster <= dips[k]
     assert all(0.0 <= x <= 1.0 for found in dips for x in found)
+
+
+def test_the_built_nlps_are_kept_up_to_the_cache_size(monkeypatch):
+    """Three structures (each sign, then each sign warm) with room for two: two kept, the
+    oldest rebuilt when asked again (a new object)."""
+    from cpopt.flatopt import transcribe
+
+    problem = cpopt.load(ROOT / "problems" / "transfer_min_torque.yaml")
+    monkeypatch.setattr(transcribe, "CACHE_SIZE", 2)
+    first = transcribe.build(problem, (1,))
+    transcribe.build(problem, (-1,))
+    transcribe.build(problem, (1,), warm=True)
+    assert transcribe.cached_structures() == 2
+    assert transcribe.build(problem, (1,)) is not first
+    assert transcribe.build(problem, (1,), warm=True) is transcribe.build(problem, (1,), warm=True)

@@ -29,6 +29,7 @@ block diagonal (10 x 10 per sample).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import casadi as ca
@@ -321,7 +322,16 @@ def _settings_key(problem: Problem) -> tuple:
     )
 
 
-_CACHE: dict = {}
+CACHE_SIZE = 48
+"""Most NLPs kept built (least recently used dropped first): a long-lived process (a sweep's
+worker, a notebook, the zoo) builds new structures for every problem and pattern, and an
+unbounded cache grew without end (each NLP holds its expression graphs and Ipopt)."""
+_CACHE: OrderedDict = OrderedDict()
+
+
+def cached_structures() -> int:
+    """How many NLPs are kept built (at most :data:`CACHE_SIZE`)."""
+    return len(_CACHE)
 
 
 def initial_grids(problem: Problem) -> tuple[Grid, ...]:
@@ -383,7 +393,9 @@ def build(
         resume,
         gamma_grid,
     )
-    if key not in _CACHE:
+    if key in _CACHE:
+        _CACHE.move_to_end(key)
+    else:
         sym = {n: ca.MX.sym(n) for n in problem.values}
         tr = _Transcription(
             problem, signs, holding, sym, warm=warm, resume=resume, gamma_grid=gamma_grid
@@ -395,6 +407,8 @@ def build(
         _holding_constraints(tr)
         _whole_motion_terms(tr)
         _CACHE[key] = _finish(tr)
+        if len(_CACHE) > CACHE_SIZE:
+            _CACHE.popitem(last=False)
     return _CACHE[key]
 
 
