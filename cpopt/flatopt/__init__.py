@@ -355,6 +355,7 @@ def solve_for_signs(
         refinement rounds (each at most :data:`REFINE_LIMIT` iterations).
     """
     grids = initial_grids(problem)
+    exact = seed is not None and bool(np.all(np.isfinite(seed.cp[:, :, 4])))  # a plan's samples
     previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
     refinements = 0
     pattern = pattern_label(signs, len(switches))
@@ -364,7 +365,7 @@ def solve_for_signs(
         tic = time.perf_counter()
         # every round of a seeded solve keeps its rows in normalised time: a refinement round
         # takes the previous round's multipliers, which are in the rows' own units
-        nlp = build(problem, signs, grids, warm=seed is not None, resume=previous is not None)
+        nlp = build(problem, signs, grids, seed is not None, previous is not None, None, exact)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous)
         left = _round_limit(limit, iterations, round_ > 1, refine_past_limit)

@@ -73,14 +73,17 @@ seeded switch pattern with mu_strategy monotone: 623 iterations at 0.1, 434 at 1
 1e-3, 287 at 1e-4; the adaptive strategy's problems unchanged)."""
 
 
-def warm_options(settings) -> dict:
+def warm_options(settings, from_plan: bool = False) -> dict:
     """Ipopt's options for a solve started from a seed trajectory: :data:`WARM_MU_INIT`, and
-    the monotone barrier update unless the file chose one (``optimizer.solver.mu_strategy``).
-    The adaptive update ignores mu_init and, at a start near the optimum, raised mu to 10 and
-    threw the start away (a random RRR transfer's patterned start at objective 6.8e3 went to
-    1e7 and ended at 5e7; monotone from the same start: 2862 by iteration 34)."""
+    the monotone barrier update for a collocation seed unless the file chose one
+    (``optimizer.solver.mu_strategy``). The adaptive update ignores mu_init and, at a start
+    near the optimum, raised mu to 10 and threw the start away (a random RRR transfer's
+    patterned start at objective 6.8e3 went to 1e7 and ended at 5e7; monotone from the same
+    start: 2862 by iteration 34). From an exact plan (``from_plan``: a continuation, a
+    polish) it keeps the file's (swing_up_switches with link 3 5 % heavier from the bundled
+    plan: 23 iterations adaptive, 87 monotone)."""
     options = {"mu_init": WARM_MU_INIT}
-    if settings.mu_strategy is None:
+    if settings.mu_strategy is None and not from_plan:
         options["mu_strategy"] = "monotone"
     return options
 
@@ -210,6 +213,7 @@ class _Transcription:
     samples: list = field(default_factory=list)
     node_lifts: dict = field(default_factory=dict)  # (node, after, fourth) -> (symbol, value)
     warm: bool = False  # started from a seed trajectory (WARM_MU_INIT)
+    from_plan: bool = False  # that seed is an exact plan (warm_options)
     resume: bool = False  # started from the previous round's solution and multipliers
     gamma_grid: int = GAMMA_GRID  # points per phase of |gamma| >= gamma_min
 
@@ -351,6 +355,7 @@ def build(
     warm: bool = False,
     resume: bool = False,
     gamma_grid: int | None = None,
+    from_plan: bool = False,
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -370,6 +375,8 @@ def build(
     gamma_grid : int, optional
         Equally spaced points per phase where |gamma| >= gamma_min is a constraint
         (:data:`WARM_GAMMA_GRID` for a warm solve, else :data:`GAMMA_GRID`, when None).
+    from_plan : bool
+        A warm solve's seed is an exact plan (:func:`warm_options`).
     """
     grids = initial_grids(problem) if grids is None else grids
     if gamma_grid is None:
@@ -392,14 +399,14 @@ def build(
         warm,
         resume,
         gamma_grid,
+        from_plan,
     )
     if key in _CACHE:
         _CACHE.move_to_end(key)
     else:
         sym = {n: ca.MX.sym(n) for n in problem.values}
-        tr = _Transcription(
-            problem, signs, holding, sym, warm=warm, resume=resume, gamma_grid=gamma_grid
-        )
+        options = {"warm": warm, "resume": resume, "gamma_grid": gamma_grid}
+        tr = _Transcription(problem, signs, holding, sym, from_plan=from_plan, **options)
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
             _phase(tr, k, grids[k].samples())
@@ -687,7 +694,7 @@ def _finish(tr: _Transcription) -> FlatNLP:
         "show_eval_warnings": False,
         "ipopt": {
             **ipopt_options(o.solver),
-            **(warm_options(o.solver) if tr.warm else {}),
+            **(warm_options(o.solver, tr.from_plan) if tr.warm else {}),
             **(RESUME_OPTIONS if tr.resume else {}),
         },
         "iteration_callback": reporter,
