@@ -38,14 +38,14 @@ def test_a_solved_run_whose_gamma_dips_below_the_margin_is_not_converged():
     assert below.return_status == "Gamma_Not_Certified_After_4_Refinements"
 
 
-def test_a_dip_gets_nine_points_around_it_within_its_phase():
+def test_a_dip_gets_eleven_points_around_it_within_its_phase():
     problem, plan, (low, t_low) = _paper_plan()
     times = [n.t for n in plan.nodes]
     dips = gamma_dips(_with_gamma_min(problem, 1.01 * low), plan, times)
     k = min(int(np.searchsorted(times, t_low, side="right")) - 1, len(plan.phases) - 1)
     s = (t_low - times[k]) / (times[k + 1] - times[k])
     cluster = {round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0.0, 1.0)}
-    assert len(DIP_CLUSTER) == 9 and cluster <= dips[k]
+    assert len(DIP_CLUSTER) == 11 and cluster <= dips[k]
     assert all(0.0 <= x <= 1.0 for found in dips for x in found)
 
 

@@ -37,12 +37,12 @@ QUADRATURE_TOL = 1e-3
 fine integral of the whole motion."""
 
 
-DIP_CLUSTER = np.linspace(-1.0, 1.0, 9) / (WARM_GAMMA_GRID - 1)
-"""The normalised times around a dip of |gamma| where a refinement adds points: the dip and
-four on each side up to one step of the coarser grid (a dip between two grid points is a
-sign change of gamma squeezed between them, which the NLP moves a little each round when it
-gets one point only: a random RPR swing-down ended its refinements at a certified 0.001
-m/s^2)."""
+DIP_CLUSTER = np.r_[0.0, np.outer([-1.0, 1.0], 0.5 ** np.arange(5)).ravel()] / (WARM_GAMMA_GRID - 1)
+"""The normalised times around a dip of |gamma| where a refinement adds points: the dip and,
+on each side, one step of the coarser grid and its halves down to a sixteenth (finer than
+either grid's step). A dip between two grid points is a sign change of gamma squeezed between
+them, which the NLP moves a little each round when it gets one point only: a random RPR
+swing-down ended its refinements at a certified 0.001 m/s^2."""
 
 
 def gamma_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
