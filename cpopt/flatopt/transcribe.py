@@ -414,7 +414,7 @@ def build(
         _holding_constraints(tr)
         _whole_motion_terms(tr)
         _CACHE[key] = _finish(tr)
-        if len(_CACHE) > CACHE_SIZE:
+        while len(_CACHE) > CACHE_SIZE:
             _CACHE.popitem(last=False)
     return _CACHE[key]
 
