@@ -6,8 +6,11 @@ re-plans from the newest plan's state perturbed by normal noise (``--dq`` [rad o
 held, warm started from the newest plan, its samples and the newest solved re-plan's
 multipliers. ``--rounds`` repeats the sweep with new noise. It prints per plan::
 
-    LOOP <plan> replans=<n> solved=<%> median_ms=<ms> p99_ms=<ms> iterations=<median>
-         statuses=<status:count,...>
+    LOOP <plan> replans=<n> solved=<%> median_ms=<ms> p99_ms=<ms> cpu_median_ms=<ms>
+         cpu_p99_ms=<ms> iterations=<median> statuses=<status:count,...>
+
+(wall times, and this process's CPU times, which other processes on the machine do not
+inflate).
 
 With ``--profile FILE`` the first plan's loop runs under cProfile (stats written to FILE).
 
@@ -21,6 +24,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import sys
+import time
 from collections import Counter
 
 import numpy as np
@@ -31,8 +35,10 @@ from cpopt.flatopt.replan import Replan, replan
 from cpopt.problem import bundled_problems
 
 
-def sweep(solution, period: float, dq: float, dqd: float, rng) -> list[Replan]:
-    """One sweep of re-plans every ``period`` [s] from the newest plan's perturbed states."""
+def sweep(solution, period: float, dq: float, dqd: float, rng) -> list[tuple[Replan, float]]:
+    """One sweep of re-plans every ``period`` [s] from the newest plan's perturbed states:
+    each re-plan and the CPU time of this process it took [s] (unlike its wall time, not
+    inflated by other processes on the machine: the figure to compare designs by)."""
     problem, plan = solution.problem, solution.plan
     newest, samples, warm = plan, sample(plan), None
     out = []
@@ -40,25 +46,29 @@ def sweep(solution, period: float, dq: float, dqd: float, rng) -> list[Replan]:
         now = sample_at(newest, [t], samples)
         q = now.q[0] + rng.normal(0.0, dq, 3)
         qd = now.qd[0] + rng.normal(0.0, dqd, 3)
+        tic = time.process_time()
         r = replan(problem, newest, float(t), q, qd, seed=samples, warm=warm,
                    free_compensator=False)  # fmt: skip
         if r.status == "holding":
             break
-        out.append(r)
+        out.append((r, time.process_time() - tic))
         if r.solved:
             newest, samples, warm = r.plan, r.samples, r.multipliers
     return out
 
 
-def summary(name: str, replans: list[Replan]) -> str:
+def summary(name: str, timed: list[tuple[Replan, float]]) -> str:
     """The LOOP line of one plan's re-plans."""
+    replans = [r for r, _ in timed]
     ms = 1e3 * np.array([r.time_s for r in replans])
+    cpu = 1e3 * np.array([c for _, c in timed])
     solved = np.mean([r.solved for r in replans])
     iterations = np.median([r.iterations for r in replans])
     statuses = ",".join(f"{k}:{v}" for k, v in Counter(r.status for r in replans).items())
     return (
         f"LOOP {name} replans={len(replans)} solved={100 * solved:.1f}% "
         f"median_ms={np.median(ms):.1f} p99_ms={np.percentile(ms, 99):.1f} "
+        f"cpu_median_ms={np.median(cpu):.1f} cpu_p99_ms={np.percentile(cpu, 99):.1f} "
         f"iterations={iterations:.0f} statuses={statuses}"
     )
 
