@@ -189,6 +189,7 @@ class _Transcription:
     warm: bool = False  # started from a seed trajectory (WARM_MU_INIT)
     resume: bool = False  # started from the previous round's solution and multipliers
     gamma_grid: int = GAMMA_GRID  # points per phase of |gamma| >= gamma_min
+    ipopt: tuple = ()  # (name, value) pairs of Ipopt options set last
 
     @property
     def settings(self):
@@ -319,6 +320,7 @@ def build(
     warm: bool = False,
     resume: bool = False,
     gamma_grid: int = GAMMA_GRID,
+    ipopt: tuple[tuple[str, object], ...] = (),
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -337,6 +339,9 @@ def build(
         The solver starts from a previous solution's multipliers (:data:`RESUME_OPTIONS`).
     gamma_grid : int
         Equally spaced points per phase where |gamma| >= gamma_min is a constraint.
+    ipopt : tuple of (str, object)
+        Ipopt options set after every other (a re-plan's own,
+        :data:`cpopt.flatopt.replan.REPLAN_IPOPT`).
     """
     grids = initial_grids(problem) if grids is None else grids
     holding = holding_pattern(problem, signs)
@@ -357,12 +362,14 @@ def build(
         warm,
         resume,
         gamma_grid,
+        ipopt,
     )
     if key not in _CACHE:
         sym = {n: ca.MX.sym(n) for n in problem.values}
         tr = _Transcription(
-            problem, signs, holding, sym, warm=warm, resume=resume, gamma_grid=gamma_grid
-        )
+            problem, signs, holding, sym, warm=warm, resume=resume, gamma_grid=gamma_grid,
+            ipopt=ipopt,
+        )  # fmt: skip
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
             _phase(tr, k, grids[k].samples())
@@ -650,6 +657,7 @@ def _finish(tr: _Transcription) -> FlatNLP:
             **ipopt_options(o.solver),
             **({"mu_init": WARM_MU_INIT} if tr.warm else {}),
             **(RESUME_OPTIONS if tr.resume else {}),
+            **dict(tr.ipopt),
         },
         "iteration_callback": reporter,
         **nlp.options,
