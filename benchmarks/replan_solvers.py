@@ -103,6 +103,9 @@ def main(argv=None) -> int:
     parser.add_argument("--at", type=float, default=0.3, help="re-plan instant [s]")
     parser.add_argument("--repeat", type=int, default=3, help="solves per solver (3)")
     parser.add_argument("--sqp-iterations", type=int, default=10, help="SQP iterations (10)")
+    parser.add_argument(
+        "--solvers", default="ipopt_condensed,sqp", help="condensed solvers to run, NAME,..."
+    )
     args = parser.parse_args(argv)
     files = {f.stem: f for f in bundled_problems()}
     solution = cpopt.solve(cpopt.load(files[args.plan]))
@@ -116,7 +119,7 @@ def main(argv=None) -> int:
               f"ms={1e3 * r.time_s:.1f} objective={r.objective:.6g}", flush=True)  # fmt: skip
     rest = remaining(solution.problem, solution.plan, args.at, q, qd, False)
     problem = rp.with_replan_settings(rest.problem)
-    nlp = build(problem, rest.signs, initial_grids(problem), warm=True)
+    nlp = build(problem, rest.signs, initial_grids(problem), warm=True, gamma_grid=rp.GAMMA_GRID)
     p = nlp.parameters(problem.values)
     lbx, ubx = rp.variable_bounds(nlp, problem)
     x0 = rp.start_vector(nlp, problem, rest.signs, rp.shifted_seed(seed, args.at), p)
@@ -124,7 +127,8 @@ def main(argv=None) -> int:
     n = nlp.layout.size
     print(f"condensed: {n} variables, {keep.sum()} constraints (full: {x0.size}, {keep.size})")
     bounds = {"lbx": lbx[:n], "ubx": ubx[:n], "lbg": nlp.lbg[keep], "ubg": nlp.ubg[keep]}
-    for name, solver in solvers(*condensed(nlp, keep, p.size), args.sqp_iterations).items():
+    chosen = solvers(*condensed(nlp, keep, p.size), args.sqp_iterations)
+    for name, solver in ((k, v) for k, v in chosen.items() if k in args.solvers.split(",")):
         for _ in range(args.repeat):
             tic = time.perf_counter()
             out = solver(x0=x0[:n], p=p, **bounds)

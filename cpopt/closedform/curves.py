@@ -101,38 +101,47 @@ class PiecewisePolynomial:
 
     def piece_minima(self, offset: tuple[float, float]) -> list[tuple[float, float]]:
         """Exact minimum of ``|p''(t) + offset|`` on each piece, as (value [m/s^2], time [s])."""
+        h = np.diff(self.breaks)
+        finite = np.all(np.isfinite(self.coeffs), axis=(1, 2))
+        # Candidates of every piece evaluated in one call: per call, numpy's overhead is most
+        # of the cost on a re-plan's few pieces (the Polynomial class took 6 ms a plan).
+        cands = [self._stationary(k, h[k], offset) if finite[k] else [] for k in range(h.size)]
+        owner = np.repeat(np.arange(h.size), [len(c) for c in cands])
+        times = self.breaks[owner] + np.concatenate([[], *cands]) * h[owner]
+        # Evaluate the candidates on the curve itself: the squared polynomial loses digits.
+        acc = self.derivatives(times, 2)[:, :, 2] + np.asarray(offset)
+        norms = np.hypot(acc[:, 0], acc[:, 1])
         out = []
-        deg = self.coeffs.shape[1] - 1
-        for k, h in enumerate(np.diff(self.breaks)):
-            if not np.all(np.isfinite(self.coeffs[k])):  # a failed solve's iterate: no minimum
+        for k in range(h.size):
+            if not finite[k]:  # a failed solve's iterate: no minimum
                 out.append((math.nan, float(self.breaks[k])))
                 continue
-            polys = []
-            for i in range(2):
-                p = np.polynomial.Polynomial(self.coeffs[k, :, i]).deriv(2) / h**2
-                polys.append(p + offset[i])
-            sq = polys[0] ** 2 + polys[1] ** 2
-            cands = [0.0, 1.0]
-            if deg >= 3:
-                slope = sq.deriv()
-                curv = slope.deriv()
-                for r in slope.roots():
-                    if abs(r.imag) > 1e-4 or not -1e-6 < r.real < 1 + 1e-6:
-                        continue
-                    lam = r.real
-                    for _ in range(4):  # Newton polishing: companion-matrix roots lose digits
-                        c = curv(lam)
-                        if c == 0:
-                            break
-                        lam -= slope(lam) / c
-                    cands.append(min(max(lam, 0.0), 1.0))
-            # Evaluate the candidates on the curve itself: the squared polynomial loses digits.
-            times = self.breaks[k] + np.asarray(cands) * h
-            acc = self.derivatives(times, 2)[:, :, 2] + np.asarray(offset)
-            norms = np.hypot(acc[:, 0], acc[:, 1])
-            i = int(np.argmin(norms))
+            mine = np.flatnonzero(owner == k)
+            i = mine[int(np.argmin(norms[mine]))]
             out.append((float(norms[i]), float(times[i])))
         return out
+
+    def _stationary(self, k: int, h: float, offset: tuple[float, float]) -> list[float]:
+        """Piece k's candidates for the minimum of ``|p'' + offset|^2``: its ends and the
+        roots of the derivative in [0, 1], in local time lam (h: the piece's length [s])."""
+        P = np.polynomial.polynomial
+        cands = [0.0, 1.0]
+        if self.coeffs.shape[1] - 1 < 3:
+            return cands
+        acc = [P.polyadd(P.polyder(self.coeffs[k, :, i], 2) / h**2, [offset[i]]) for i in (0, 1)]
+        slope = P.polyder(P.polyadd(P.polymul(acc[0], acc[0]), P.polymul(acc[1], acc[1])))
+        curv = P.polyder(slope)
+        for r in P.polyroots(slope):
+            if abs(r.imag) > 1e-4 or not -1e-6 < r.real < 1 + 1e-6:
+                continue
+            lam = r.real
+            for _ in range(4):  # Newton polishing: companion-matrix roots lose digits
+                c = P.polyval(lam, curv)
+                if c == 0:
+                    break
+                lam -= P.polyval(lam, slope) / c
+            cands.append(min(max(lam, 0.0), 1.0))
+        return cands
 
 
 def hermite(t0: float, t1: float, start: np.ndarray, end: np.ndarray) -> PiecewisePolynomial:

@@ -35,6 +35,17 @@ SOLVER_SETTINGS = {"tol": 1e-6, "mu_strategy": "monotone", "print_level": 0}
 optimum, where the monotone barrier from the warm start's small mu_init
 (:data:`~cpopt.flatopt.transcribe.WARM_MU_INIT`) takes fewer iterations than the adaptive one,
 and 1e-6 is far below what a plan tracked by feedback at 1 kHz can tell apart."""
+REPLAN_IPOPT = (("mu_init", 1e-5),)
+"""Ipopt's options for a re-plan beyond its settings: the barrier starts at 1e-5 (a re-plan
+starts next to its optimum, warm started with the previous re-plan's multipliers). Measured
+in pairs (each re-plan of the loop of benchmarks/replan_loop.py solved both ways, 44
+re-plans of transfer_min_torque, 74 of swing_up_holding) against 1e-3
+(:data:`~cpopt.flatopt.transcribe.WARM_MU_INIT`): median Ipopt iterations 14 -> 13 and
+15 -> 14, CPU time a re-plan 6 % and 5 % less (median of the pairs' ratios), the same solved
+fractions and slowest re-plans. MUMPS without its KKT scaling
+(``mumps_permuting_scaling``, ``mumps_scaling`` 0) took 3 % less at the median but
+transfer_min_torque's slowest re-plans twice as long (p99 292 -> 548 ms); Ipopt's gradient
+scaling off, 2 % more and one re-plan fewer solved."""
 FIT_ORDERS = (4,)
 """The CP derivative orders the warm start fits to the current plan (its fourth alone: the
 torque's). The start's jet is the measured state's, the current plan's differs, and a fit of
@@ -195,7 +206,8 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, 
     key = structure(rest)
     resume = warm is not None and warm.structure == key
     grids = initial_grids(problem)
-    nlp = build(problem, signs, grids, warm=True, resume=resume, gamma_grid=GAMMA_GRID)
+    nlp = build(problem, signs, grids, warm=True, resume=resume, gamma_grid=GAMMA_GRID,
+                ipopt=REPLAN_IPOPT)  # fmt: skip
     p = nlp.parameters(problem.values)
     lbx, ubx = variable_bounds(nlp, problem)
     x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
@@ -314,6 +326,7 @@ def replan(
 
 
 __all__ = [
+    "REPLAN_IPOPT",
     "REPLAN_ITERATIONS",
     "Multipliers",
     "Replan",

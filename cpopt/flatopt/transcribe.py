@@ -216,6 +216,7 @@ class _Transcription:
     from_plan: bool = False  # that seed is an exact plan (warm_options)
     resume: bool = False  # started from the previous round's solution and multipliers
     gamma_grid: int = GAMMA_GRID  # points per phase of |gamma| >= gamma_min
+    ipopt: tuple = ()  # (name, value) pairs of Ipopt options set last
 
     @property
     def settings(self):
@@ -356,6 +357,7 @@ def build(
     resume: bool = False,
     gamma_grid: int | None = None,
     from_plan: bool = False,
+    ipopt: tuple[tuple[str, object], ...] = (),
 ) -> FlatNLP:
     """Build (or fetch) the NLP for a problem structure, the signs of gamma and sample grids.
 
@@ -377,6 +379,9 @@ def build(
         (:data:`WARM_GAMMA_GRID` for a warm solve, else :data:`GAMMA_GRID`, when None).
     from_plan : bool
         A warm solve's seed is an exact plan (:func:`warm_options`).
+    ipopt : tuple of (str, object)
+        Ipopt options set after every other (a re-plan's own,
+        :data:`cpopt.flatopt.replan.REPLAN_IPOPT`).
     """
     grids = initial_grids(problem) if grids is None else grids
     if gamma_grid is None:
@@ -400,12 +405,13 @@ def build(
         resume,
         gamma_grid,
         from_plan,
+        ipopt,
     )
     if key in _CACHE:
         _CACHE.move_to_end(key)
     else:
         sym = {n: ca.MX.sym(n) for n in problem.values}
-        options = {"warm": warm, "resume": resume, "gamma_grid": gamma_grid}
+        options = {"warm": warm, "resume": resume, "gamma_grid": gamma_grid, "ipopt": ipopt}
         tr = _Transcription(problem, signs, holding, sym, from_plan=from_plan, **options)
         _decisions(tr)
         for k in range(len(problem.nodes) - 1):
@@ -696,6 +702,7 @@ def _finish(tr: _Transcription) -> FlatNLP:
             **ipopt_options(o.solver),
             **(warm_options(o.solver, tr.from_plan) if tr.warm else {}),
             **(RESUME_OPTIONS if tr.resume else {}),
+            **dict(tr.ipopt),
         },
         "iteration_callback": reporter,
         **nlp.options,
