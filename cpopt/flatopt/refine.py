@@ -20,9 +20,10 @@ from ..model.kinematics import ReachError
 from ..model.limits import sampled
 from ..model.objectives import abs_power, squared_norm, weights
 from ..problem import Problem
+from .ipopt_settings import WARM_GAMMA_GRID
 from .quadrature import fine_rule
 from .samples import QD, TAU, sample_values
-from .transcribe import WARM_GAMMA_GRID, FlatNLP
+from .transcribe import FlatNLP
 
 CERTIFICATION = (
     "exact minimum of |p'' + g0 e_y| over every polynomial piece of the CP curves "

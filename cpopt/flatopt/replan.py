@@ -33,14 +33,14 @@ from .warm_start import initial_guess, seeded_guess
 SOLVER_SETTINGS = {"tol": 1e-6, "mu_strategy": "monotone", "print_level": 0}
 """Ipopt's settings for a re-plan (``optimizer.solver`` keys): a re-plan starts next to its
 optimum, where the monotone barrier from the warm start's small mu_init
-(:data:`~cpopt.flatopt.transcribe.WARM_MU_INIT`) takes fewer iterations than the adaptive one,
+(:data:`~cpopt.flatopt.ipopt_settings.WARM_MU_INIT`) takes fewer iterations than the adaptive one,
 and 1e-6 is far below what a plan tracked by feedback at 1 kHz can tell apart."""
 REPLAN_IPOPT = (("mu_init", 1e-5),)
 """Ipopt's options for a re-plan beyond its settings: the barrier starts at 1e-5 (a re-plan
 starts next to its optimum, warm started with the previous re-plan's multipliers). Measured
 in pairs (each re-plan of the loop of benchmarks/replan_loop.py solved both ways, 44
 re-plans of transfer_min_torque, 74 of swing_up_holding) against 1e-3
-(:data:`~cpopt.flatopt.transcribe.WARM_MU_INIT`): median Ipopt iterations 14 -> 13 and
+(:data:`~cpopt.flatopt.ipopt_settings.WARM_MU_INIT`): median Ipopt iterations 14 -> 13 and
 15 -> 14, CPU time a re-plan 6 % and 5 % less (median of the pairs' ratios), the same solved
 fractions and slowest re-plans. MUMPS without its KKT scaling
 (``mumps_permuting_scaling``, ``mumps_scaling`` 0) took 3 % less at the median but

@@ -161,7 +161,7 @@ class SolverSpec(_Spec):
     """Ipopt settings and the problem's wall-clock limit ``max_time`` [s]; ``hessian`` None
     means the objective's default (:func:`cpopt.model.objectives.default_hessian`),
     ``mu_strategy`` None cpopt's choice: ``adaptive``, but ``monotone`` for a flat solve
-    started from a seed trajectory (:func:`cpopt.flatopt.transcribe.warm_options`)."""
+    started from a seed trajectory (:func:`cpopt.flatopt.ipopt_settings.warm_options`)."""
 
     max_iter: Annotated[int, WHOLE, Field(gt=0)] = 1000
     tol: Positive = 1e-8

@@ -34,7 +34,7 @@ def status_of(return_status: str) -> str:
 
 DEFAULT_MU_STRATEGY = "adaptive"
 """Ipopt's barrier update where ``optimizer.solver.mu_strategy`` is not set (the flat
-optimizer's warm starts choose their own, :func:`cpopt.flatopt.transcribe.warm_options`)."""
+optimizer's warm starts choose their own, :func:`cpopt.flatopt.ipopt_settings.warm_options`)."""
 
 
 def ipopt_options(settings, mu_strategy: bool = True) -> dict:
