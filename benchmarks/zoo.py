@@ -198,8 +198,9 @@ def run_flat(data: dict, switches, time_limit: float) -> Flat:
     return out
 
 
-def run_collocation(data: dict, intervals: int) -> float | None:
-    """The unconstrained collocation optimum's torque integral, or None when it fails."""
+def _collocation_cost(data: dict, intervals: int) -> float | None:
+    """The unconstrained collocation optimum's torque integral, or None when it fails (run in
+    a worker process, :func:`run_collocation`)."""
     import cpopt
     from cpopt.collocation import collocate, joint_metrics, joint_trajectory
     from cpopt.problem import ProblemError
@@ -212,6 +213,33 @@ def run_collocation(data: dict, intervals: int) -> float | None:
     if result.status != "solved":
         return None
     return joint_metrics(result.plan, joint_trajectory(result.plan)).torque_sq_integral
+
+
+COLLOCATIONS_PER_WORKER = 4
+"""Collocation references a worker process solves before a fresh one takes over: rockit keeps
+every transcription's state in the process, and one process grew to 12 GB by the 27th draw,
+where one transcription then took minutes."""
+
+
+def run_collocation(data: dict, intervals: int, pool=None) -> float | None:
+    """:func:`_collocation_cost` in ``pool``'s worker (in this process without one)."""
+    if pool is None:
+        return _collocation_cost(data, intervals)
+    return pool.submit(_collocation_cost, data, intervals).result()
+
+
+def collocation_pool():
+    """A one-worker process pool renewed every :data:`COLLOCATIONS_PER_WORKER` tasks (this
+    file's folder on the path it inherits: a worker imports this module by name)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+
+    context = multiprocessing.get_context("spawn")
+    return ProcessPoolExecutor(1, context, max_tasks_per_child=COLLOCATIONS_PER_WORKER)
 
 
 @dataclass
@@ -256,10 +284,11 @@ def zoo(count: int, seed: int, intervals: int, time_limit: float, save: Path | N
     """Draw and run ``count`` problems; yields each Row, then the redraw count."""
     rng = np.random.default_rng(seed)
     redraws = 0
+    pool = collocation_pool()
     for i in range(count):
         for _ in range(MAX_REDRAWS):
             data = draw(rng, f"zoo{seed}_{i:02d}")
-            collocation = run_collocation(data, intervals) if _valid(data) else None
+            collocation = run_collocation(data, intervals, pool) if _valid(data) else None
             if collocation is not None and collocation > 0:
                 break
             redraws += 1
@@ -273,6 +302,7 @@ def zoo(count: int, seed: int, intervals: int, time_limit: float, save: Path | N
         one = run_flat(data, 0, time_limit)
         auto = run_flat(data, "auto", time_limit)
         yield Row(data["name"], data["description"], collocation, one, auto)
+    pool.shutdown()
     yield redraws
 
 
