@@ -327,11 +327,12 @@ def test_a_patterned_seed_ends_at_the_holding_torque_where_the_flat_plan_does():
     patterned seed's actuated joints do not accelerate at a held end (measured 1e-9 rad/s^2 or
     less), where without the held rows a random RRR swing-up's ended at gamma = 2.5 m/s^2
     against its flat plan's g0."""
-    from cpopt.collocation.hermite_simpson import held_ends
+    from cpopt.flatopt.holding import holding_pattern
 
     problem = _auto(ROOT / "problems" / "swing_up_holding.yaml")
     seed = coarse_seed(problem)
-    held = held_ends(problem, (-1, 1))  # gamma from -g0 to +g0: one switch, here at 0.8 s
+    pattern = holding_pattern(problem, (-1, 1))  # gamma from -g0 to +g0: one switch at 0.8 s
+    held = (pattern[0], pattern[-1])
     assert held == (True, True)
     shaped = patterned_seed(problem, seed, (0.8,), (-1, 1))
     assert shaped is not None

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..closedform.nodes import node_names
 from ..closedform.plan import Node
+from ..flatopt.holding import holding_pattern
 from ..model.dynamics import rk4_step, state_derivative
 from ..model.kinematics import BRANCH_MARGIN, branch_margin, kinematic_functions
 from ..model.objectives import weights
@@ -60,20 +61,6 @@ def _intervals(
     knots = np.array(knots)
     index = [int(np.argmin(np.abs(knots - n.t))) for n in problem.nodes]
     return knots, index, np.array(phase)
-
-
-def held_ends(problem: Problem, signs) -> tuple[bool, bool]:
-    """Whether the start and the goal are held at the holding torque by a flat plan with these
-    signs of gamma (its first and last phases'; :func:`cpopt.flatopt.holding.holding_pattern`)."""
-    from ..flatopt.holding import holding_possible, rest_ends
-
-    if not problem.spec.optimizer.smooth_torque:
-        return False, False
-    rest, last = rest_ends(problem), len(problem.nodes) - 1
-    return (
-        rest[0] and holding_possible(problem, int(signs[0]), 0),
-        rest[last] and holding_possible(problem, int(signs[-1]), last),
-    )
 
 
 def _check(problem: Problem) -> dict:
@@ -197,6 +184,20 @@ def _held_rows(problem: Problem, X, torque: Torques, held: tuple[bool, bool]) ->
     return [ca.vertcat(*rows)] if rows else [], [zeros] if rows else [], [zeros] if rows else []
 
 
+def _pattern_rows(problem: Problem, X, M, torque, signs, phase, steps, ceiling) -> tuple:
+    """A pattern's rows: ``sign * gamma >= gamma_min`` per interval (``phase``: each interval's
+    piece of ``signs``), the ``ceiling`` at the switches' knots ``steps`` when given
+    (:func:`_gamma_rows`), and the held rest ends (:func:`_held_rows`). Returns the rows, their
+    lower and upper bounds."""
+    at_switch = np.zeros(X.shape[1], bool)
+    at_switch[steps] = ceiling is not None
+    sigma = np.asarray(signs, float)[phase]
+    rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, ceiling)
+    held = holding_pattern(problem, tuple(int(s) for s in signs))
+    ends = _held_rows(problem, X, torque, (held[0], held[-1]))
+    return rows + ends[0], lower + ends[1], upper + ends[2]
+
+
 def _collocation_rows(problem: Problem, X, M, torque, h, index, branch: float) -> tuple:
     """The Hermite-Simpson conditions (the midpoint state of the cubic through the knots,
     Simpson's rule), the torques' joins, the nodes' fields and the arm's branch: the rows, their
@@ -295,12 +296,9 @@ def hermite_simpson(
     X, M = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n)
     nlp, lbg, ubg = _nlp(problem, X, M, knots, index, torque, branch, w["torque"])
     if signs is not None:
-        at_switch = np.zeros(n + 1, bool)
-        at_switch[steps] = switch_ceiling is not None
-        sigma = np.asarray(signs, float)[phase]
-        rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, switch_ceiling)
-        held = _held_rows(problem, X, torque, held_ends(problem, signs))
-        rows, lower, upper = rows + held[0], lower + held[1], upper + held[2]
+        rows, lower, upper = _pattern_rows(
+            problem, X, M, torque, signs, phase, steps, switch_ceiling
+        )
         nlp["g"], lbg, ubg = ca.vertcat(nlp["g"], *rows), lbg + lower, ubg + upper
     options = {"expand": False, "print_time": False}
     solver = ca.nlpsol("seed", "ipopt", nlp, {**options, "ipopt": _ipopt(problem, limit, deadline)})
@@ -309,9 +307,17 @@ def hermite_simpson(
     solution = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solved = time.perf_counter()
     check_stop()
-    said, status, iterations = read_stats(solver.stats())
+    status, stats = _report(solver, solution, n, signs, (tic, built, solved))
     plan = _read_plan(problem, knots, index, torque, np.asarray(solution["x"]).ravel())
+    return status, plan, stats
+
+
+def _report(solver, solution, n: int, signs, times: tuple) -> tuple:
+    """(cpopt's status, SolverStats) of a solve of ``n`` intervals; ``times``: the
+    ``time.perf_counter()`` at its start, once built and once solved [s]."""
+    said, status, iterations = read_stats(solver.stats())
     what = "no gamma constraint" if signs is None else f"signs of gamma {tuple(signs)}"
+    tic, built, solved = times
     stats = SolverStats(
         iterations=iterations,
         build_time_s=built - tic,
@@ -319,7 +325,7 @@ def hermite_simpson(
         message=f"Ipopt: {said} (Hermite-Simpson, {n} intervals, {what})",
         objective=float(solution["f"]),
     )
-    return status, plan, stats
+    return status, stats
 
 
 def _nlp(problem: Problem, X, M, knots: np.ndarray, index, torque: Torques, branch, weight):

@@ -46,7 +46,7 @@ from .refine import (
 from .restart import restart
 from .seeded import search as seeded_search
 from .transcribe import FlatNLP, build, initial_grids, phase_pieces
-from .warm_start import initial_guess, seeded_guess
+from .warm_start import exact_plan, initial_guess, seeded_guess
 
 SIGN_NAMES = {1: "positive", -1: "negative"}
 """The words for the signs of gamma, as ``gamma_sign`` spells them."""
@@ -355,7 +355,7 @@ def solve_for_signs(
         refinement rounds (each at most :data:`REFINE_LIMIT` iterations).
     """
     grids = initial_grids(problem)
-    exact = seed is not None and bool(np.all(np.isfinite(seed.cp[:, :, 4])))  # a plan's samples
+    exact = seed is not None and exact_plan(seed)
     previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
     refinements = 0
     pattern = pattern_label(signs, len(switches))

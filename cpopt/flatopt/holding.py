@@ -36,10 +36,12 @@ def holding_possible(problem: Problem, sign: int, index: int) -> bool:
 
 def holding_pattern(problem: Problem, signs: tuple[int, ...]) -> tuple[bool, ...]:
     """Per node: held at the holding torque (a rest end, ``smooth_torque``, and possible with
-    the sign of gamma of the phase it starts or ends)."""
+    the sign of gamma of the phase it starts or ends: ``signs[0]`` or ``signs[-1]``)."""
     smooth = problem.spec.optimizer.smooth_torque
+    # a rest end is the start or the goal: the first phase's sign or the last's (``signs`` may
+    # also be a pattern's, with more phases than the problem's nodes make)
     return tuple(
-        rest and smooth and holding_possible(problem, signs[min(i, len(signs) - 1)], i)
+        rest and smooth and holding_possible(problem, signs[0] if i == 0 else signs[-1], i)
         for i, rest in enumerate(rest_ends(problem))
     )
 

@@ -108,8 +108,19 @@ def residual(c: np.ndarray, lin: LinearRows, target: PoseTarget) -> np.ndarray:
     )
 
 
-def jacobian(c: np.ndarray, lin: LinearRows, target: PoseTarget) -> np.ndarray:
-    """The residuals' Jacobian in (c[:, 0], c[:, 1]) stacked."""
+def linear_jacobian(lin: LinearRows) -> np.ndarray:
+    """The linear fit's rows of the Jacobian in (c[:, 0], c[:, 1]) stacked (constant)."""
+    n, m = lin.rows.shape
+    linear = np.zeros((2 * n, 2 * m))
+    linear[:n, :m] = linear[n:, m:] = LINEAR_WEIGHT * lin.rows
+    return linear
+
+
+def jacobian(
+    c: np.ndarray, lin: LinearRows, target: PoseTarget, linear: np.ndarray | None = None
+) -> np.ndarray:
+    """The residuals' Jacobian in (c[:, 0], c[:, 1]) stacked (``linear``: the constant rows of
+    :func:`linear_jacobian`, when the caller has them)."""
     theta, _, ap = _pose(c, lin, target)
     norm2 = np.maximum((ap**2).sum(axis=1), 1e-12)[:, None]
     d_theta = np.hstack(
@@ -119,9 +130,7 @@ def jacobian(c: np.ndarray, lin: LinearRows, target: PoseTarget) -> np.ndarray:
     K = target.K
     base_x = np.hstack([lin.position, zero]) + K * np.sin(theta)[:, None] * d_theta
     base_y = np.hstack([zero, lin.position]) - K * np.cos(theta)[:, None] * d_theta
-    linear = np.zeros((2 * lin.rows.shape[0], 2 * lin.rows.shape[1]))
-    n, m = lin.rows.shape
-    linear[:n, :m] = linear[n:, m:] = LINEAR_WEIGHT * lin.rows
+    linear = linear_jacobian(lin) if linear is None else linear
     norm = np.sqrt(norm2)
     short = (np.hypot(ap[:, 0], ap[:, 1]) < target.least)[:, None]
     d_gamma = np.hstack(
@@ -135,25 +144,24 @@ def refined(c0: np.ndarray, lin: LinearRows, target: PoseTarget) -> np.ndarray:
     """The free coefficients (m, 2) from the linear fit ``c0`` refined by Levenberg-Marquardt
     steps on :func:`residual`; ``c0`` itself when no step lowers it."""
     c, m = np.array(c0, float), c0.shape[0]
+    linear = linear_jacobian(lin)
     r = residual(c, lin, target)
+    J = jacobian(c, lin, target, linear)
     cost, damping = float(r @ r), DAMPING
     for _ in range(ITERATIONS):
-        J = jacobian(c, lin, target)
         normal = J.T @ J
-        step = (
-            np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), -J.T @ r)
-            .reshape(2, m)
-            .T
-        )
+        lhs = normal + damping * np.diag(np.diag(normal) + 1e-12)
+        step = np.linalg.solve(lhs, -J.T @ r).reshape(2, m).T
         trial = residual(c + step, lin, target)
         new = float(trial @ trial)
-        if np.isfinite(new) and new < cost:
-            c, r, damping = c + step, trial, damping / 3
-            if cost - new < 1e-6 * cost:
-                break
-            cost = new
-        else:
-            damping *= 10
+        if not (np.isfinite(new) and new < cost):
+            damping *= 10  # the same point, a shorter step: its Jacobian stands
+            continue
+        c, r, damping = c + step, trial, damping / 3
+        if cost - new < 1e-6 * cost:
+            break
+        cost = new
+        J = jacobian(c, lin, target, linear)
     return c
 
 

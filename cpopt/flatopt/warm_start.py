@@ -209,12 +209,18 @@ zero as smoothing (a position fit alone leaves the ends, where the node values f
 free to kink, and the torque follows the fourth derivative)."""
 
 
+def exact_plan(seed: Trajectory) -> bool:
+    """True when ``seed`` samples an exact plan (its CP's fourth derivative defined), not a
+    collocation (whose CP has no fourth derivative)."""
+    return bool(np.all(np.isfinite(seed.cp[:, :, 4])))
+
+
 def reproduced(seed: Trajectory, t: np.ndarray, least: float) -> bool:
-    """True when the fit reproduces ``seed`` at times t: an exact plan (its CP's fourth
-    derivative defined) whose gamma keeps the sign of ``least`` there (a re-solve, a polish
-    dropping no switch here); across a sign change its jet would fight the moved acceleration."""
+    """True when the fit reproduces ``seed`` at times t: an exact plan (:func:`exact_plan`)
+    whose gamma keeps the sign of ``least`` there (a re-solve, a polish dropping no switch
+    here); across a sign change its jet would fight the moved acceleration."""
     gamma = np.interp(t, seed.t, seed.gamma)
-    return bool(np.all(np.isfinite(seed.cp[:, :, 4])) and np.all(np.sign(least) * gamma > 0))
+    return exact_plan(seed) and bool(np.all(np.sign(least) * gamma > 0))
 
 
 def targets(

@@ -209,6 +209,8 @@ class Stall:
 
     def __init__(self) -> None:
         self.feasible: list[tuple[int, float]] = []
+        self.aged = 0  # how many of them are STALL_WINDOW iterations old: their best is known
+        self.best_aged = math.inf
 
     def stalled(self, iteration: int, objective: float, infeasibility: float) -> bool:
         """True when this iterate is feasible and its objective within STALL_CHANGE of the
@@ -216,10 +218,12 @@ class Stall:
         if not math.isfinite(objective) or infeasibility > STALL_FEASIBLE:
             return False
         self.feasible.append((iteration, objective))
-        old = [f for i, f in self.feasible if i <= iteration - STALL_WINDOW]
-        if not old:
+        while self.feasible[self.aged][0] <= iteration - STALL_WINDOW:
+            self.best_aged = min(self.best_aged, self.feasible[self.aged][1])
+            self.aged += 1
+        if not math.isfinite(self.best_aged):
             return False
-        reference = min(old)
+        reference = self.best_aged
         return abs(objective - reference) <= STALL_CHANGE * max(abs(reference), 1e-12)
 
 
