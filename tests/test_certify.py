@@ -38,6 +38,19 @@ def test_a_solved_run_whose_gamma_dips_below_the_margin_is_not_converged():
     assert below.return_status == "Gamma_Not_Certified_After_4_Refinements"
 
 
+def test_a_solved_run_out_of_the_arms_reach_is_unreachable():
+    """The paper's transfer on an arm whose first two links are 40 % shorter: its samples leave
+    the reach, so a solved run of it is unreachable, never solved."""
+    problem, plan, (low, _) = _paper_plan()
+    run = NlpRun(x=np.zeros(1), objective=1.0, return_status="Solve_Succeeded", status="solved",
+                 iterations=10, solve_time_s=0.1)  # fmt: skip
+    links = tuple(replace(k, length=0.6 * k.length) for k in plan.arm.links[:2])
+    short = replace(plan, arm=replace(plan.arm, links=links + plan.arm.links[2:]))
+    out = solved_if_certified(_with_gamma_min(problem, 0.99 * low), run, short, 0)
+    assert out.status == "unreachable"
+    assert out.return_status == "Out_Of_Reach_Between_Samples"
+
+
 def test_a_dip_gets_eleven_points_around_it_within_its_phase():
     problem, plan, (low, t_low) = _paper_plan()
     times = [n.t for n in plan.nodes]

@@ -394,14 +394,22 @@ def solved_if_certified(problem: Problem, run, plan: CPPlan, refinements: int):
     """The run, ``not_converged`` when it solved but its refinements left the certified |gamma|
     below gamma_min (Ipopt's word ``Gamma_Not_Certified_After_<n>_Refinements``): a plan
     whose gamma dips to zero between its samples is singular, whatever Ipopt says (a random
-    RPR swing-down's one-sign plan, 0.001 m/s^2, whose simulation then diverged)."""
+    RPR swing-down's one-sign plan, 0.001 m/s^2, whose simulation then diverged); and
+    ``unreachable`` when it leaves the arm's reach between its samples
+    (``Out_Of_Reach_Between_Samples``; :func:`cpopt.flatopt.replan.reachable`): the search
+    samples its best plan to seed the next patterns, and a random RRR swing-down's plan,
+    solved on its grid, raised there."""
+    from .replan import reachable
+
     if run.status != "solved":
         return run
     gamma_min = problem.spec.optimizer.gamma_min
-    if plan.min_abs_gamma()[0] >= gamma_min * (1 - CERTIFY_TOLERANCE):
-        return run
-    word = f"Gamma_Not_Certified_After_{refinements}_Refinements"
-    return replace(run, status="not_converged", return_status=word)
+    if plan.min_abs_gamma()[0] < gamma_min * (1 - CERTIFY_TOLERANCE):
+        word = f"Gamma_Not_Certified_After_{refinements}_Refinements"
+        return replace(run, status="not_converged", return_status=word)
+    if reachable(plan) is None:
+        return replace(run, status="unreachable", return_status="Out_Of_Reach_Between_Samples")
+    return run
 
 
 CERTIFY_TOLERANCE = 1e-3
