@@ -9,7 +9,7 @@ import numpy as np
 from ..io.safe_yaml import echo
 from ..model import flat
 from ..model.dynamics import holding_torque, inverse_dynamics
-from ..model.kinematics import inverse_derivatives, inverse_position
+from ..model.kinematics import ReachError, inverse_derivatives, inverse_position
 from .nodes import node_names
 from .plan import CPPlan
 
@@ -72,6 +72,16 @@ def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
     # Start the angle on the branch of the start node (theta and theta + 2 pi are one pose).
     z[:, 2] += 2 * np.pi * np.round((plan.nodes[0].theta - z[0, 2]) / (2 * np.pi))
     return _completed(plan, t, phase, cp, z)
+
+
+def reachable(plan: CPPlan) -> Trajectory | None:
+    """The plan sampled (:func:`sample`) when its joint motion exists at every point, else None:
+    a plan solved on a grid may leave the arm's reach between the grid's points, and a plan
+    handed back as solved must be one the caller can sample (and re-plan from)."""
+    try:
+        return sample(plan)
+    except ReachError:
+        return None
 
 
 def checked_times(t, start: float, end: float) -> np.ndarray:

@@ -27,7 +27,7 @@ import numpy as np
 from ..closedform.curves import with_end_jets
 from ..closedform.nodes import node_names, nodes_from_values, to_file
 from ..closedform.plan import CPPlan, Phase
-from ..closedform.trajectory import Trajectory
+from ..closedform.trajectory import Trajectory, reachable
 from ..model import flat
 from ..model.objectives import weights
 from ..problem import Problem
@@ -396,11 +396,9 @@ def solved_if_certified(problem: Problem, run, plan: CPPlan, refinements: int):
     whose gamma dips to zero between its samples is singular, whatever Ipopt says (a random
     RPR swing-down's one-sign plan, 0.001 m/s^2, whose simulation then diverged); and
     ``unreachable`` when it leaves the arm's reach between its samples
-    (``Out_Of_Reach_Between_Samples``; :func:`cpopt.flatopt.replan.reachable`): the search
+    (``Out_Of_Reach_Between_Samples``; :func:`cpopt.closedform.trajectory.reachable`): the search
     samples its best plan to seed the next patterns, and a random RRR swing-down's plan,
     solved on its grid, raised there."""
-    from .replan import reachable
-
     if run.status != "solved":
         return run
     gamma_min = problem.spec.optimizer.gamma_min

@@ -22,8 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..closedform.plan import CPPlan
-from ..closedform.trajectory import Trajectory, sample
-from ..model.kinematics import ReachError
+from ..closedform.trajectory import Trajectory, reachable, sample
 from ..problem import Problem
 from ..runtime.solver import run_nlp
 from .remaining_motion import Remaining, remaining, shifted
@@ -221,17 +220,6 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, 
     except ValueError:  # an iterate so far off that its phases no longer make curves
         return run, None, multipliers
     return run, shifted(plan, rest.t0), multipliers
-
-
-def reachable(plan: CPPlan) -> Trajectory | None:
-    """The plan sampled (:func:`~cpopt.closedform.trajectory.sample`) when its joint motion
-    exists at every point, else None: a re-plan solved on its grid may leave the arm's reach
-    between the grid's points, and a plan handed back as solved must be one the caller can
-    sample (and re-plan from: the samples are the next re-plan's ``seed``)."""
-    try:
-        return sample(plan)
-    except ReachError:
-        return None
 
 
 def verdict(
