@@ -213,3 +213,16 @@ def test_feedback_is_needed_under_a_perturbation(paper_solutions):
     open_ = simulate_open_loop(plan, q_error=(0, 0, 0.01))
     assert closed.final_state_error < 0.01
     assert open_.final_state_error > 1.0
+
+
+def test_reduced_model_starts_each_phase_at_its_node(paper_solutions):
+    """The reduced model's open-loop run starts every phase from the plan's node (after its
+    resets), not from where the last phase's integration ended: an unstable phase would carry
+    its error into every later one (simulate_reduced)."""
+    plan = paper_solutions["paper_swing_up"].plan
+    reduced = paper_solutions["paper_swing_up"].verification.reduced
+    assert len(plan.phases) >= 2
+    # a phase's first sample is the last at its node's time (the previous phase ends there)
+    starts = np.searchsorted(reduced.t, [n.t for n in plan.nodes[:-1]], side="right") - 1
+    for node, i in zip(plan.nodes[:-1], starts, strict=True):
+        np.testing.assert_array_equal(reduced.state[i], node.state(after=True)[:6])

@@ -110,18 +110,23 @@ def _result(plan, mode, t, states, tau=None) -> SimulationResult:
 def simulate_reduced(
     plan: CPPlan, samples: int = 201, rtol: float = 1e-11, atol: float = 1e-11
 ) -> SimulationResult:
-    """Reduced model (3) + compensator driven open-loop by the plan's v(t) = p''''(t)."""
+    """Reduced model (3) + compensator driven open-loop by the plan's v(t) = p''''(t), each
+    phase from the plan's state at its first node (after the node's planned resets).
+
+    Each phase starts from the plan's node, not from where the previous phase's integration
+    ended: open loop, a phase where the passive link is unstable amplifies the integration
+    error exponentially, and carried over several phases it grows past any tolerance without
+    a fault in the plan (a random PRR transfer with six switches, closed-loop CP error 1e-11 m:
+    the reduced model's error carried over grew about twenty-fold a phase, 7.6e-7 m at 0.90 s,
+    1.8e-4 m at 1.26 s). Every phase's end still meets the next node's state (the
+    ``final_state_error`` of the last), and the closed loop runs the whole motion in one go.
+    """
     K, g0 = plan.arm.K, plan.arm.gravity
-    z = plan.nodes[0].state(after=True)
     ts, states = [], []
     for k, ph in enumerate(plan.phases):
-        if k:
-            z = z.copy()
-            node = plan.nodes[k]
-            z[6:8] += node.state(after=True)[6:8] - node.state()[6:8]  # the planned resets
+        z = plan.nodes[k].state(after=True)
         step = step_function("reduced", plan.arm.kind, ph.curve.coeffs.shape[1] - 1)
         t, zs = integrate_along(step, ph.curve, z, samples, rtol, atol, ([K, g0],))
-        z = zs[-1]
         ts.append(t)
         states.append(zs[:, :6])
     return _result(plan, "reduced", ts, states)
