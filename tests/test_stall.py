@@ -2,7 +2,19 @@
 
 import math
 
-from cpopt.runtime.solver import STALL_CHANGE, STALL_FEASIBLE, STALL_WINDOW, Stall
+import casadi as ca
+import numpy as np
+
+from cpopt.runtime.solver import (
+    STALL_CHANGE,
+    STALL_FEASIBLE,
+    STALL_NEARLY,
+    STALL_WINDOW,
+    BestFeasible,
+    IterationReporter,
+    Stall,
+    run_nlp,
+)
 
 
 def _first_stop(objective, infeasibility=lambda i: 0.0, iterations: int = 1000):
@@ -44,3 +56,53 @@ def test_an_excursion_above_the_old_objective_goes_on():
     best_then = 2.0 - 0.01 * (150 - STALL_WINDOW)  # the best feasible a window before
     assert not stall.stalled(150, 1.05 * best_then, 0.0)
     assert stall.stalled(151, (best_then - 0.01) * (1 + 0.5 * STALL_CHANGE), 0.0)
+
+
+def test_a_nearly_feasible_creep_stops_against_the_best_feasible_iterate():
+    """Feasible once at iteration 1, then violating the rows by a tenth of STALL_NEARLY at the
+    same objective: stopped a window after the feasible iterate; violating them by ten times
+    STALL_NEARLY: never."""
+    nearly = _first_stop(lambda i: 1.0, lambda i: 0.0 if i == 1 else 0.1 * STALL_NEARLY)
+    assert nearly == STALL_WINDOW + 1
+    assert _first_stop(lambda i: 1.0, lambda i: 0.0 if i == 1 else 10 * STALL_NEARLY) is None
+
+
+def test_the_best_feasible_iterate_is_the_lowest_feasible_one():
+    best = BestFeasible()
+    assert best.run(5, 0.1) is None
+    for i, (objective, violation) in enumerate([(3.0, 0.0), (1.0, 1.0), (2.0, 0.0), (2.5, 0.0)]):
+        arg = [np.full(2, float(i)), objective, 0.0, np.zeros(2), np.ones(1), np.zeros(0)]
+        best.offer(i + 1, objective, STALL_FEASIBLE * violation * 10, arg)
+    run = best.run(9, 0.5)
+    assert (run.objective, run.status, run.iterations) == (2.0, "solved", 9)
+    assert run.return_status == "Best_Feasible_Iterate_At_3"
+    np.testing.assert_array_equal(run.x, [2.0, 2.0])
+    np.testing.assert_array_equal(run.lam_g, [-1.0])  # NlpRun's sign: positive at a lower bound
+
+
+def _rosenbrock_on_a_line():
+    """min (1 - x0)^2 + 100 (x1 - x0^2)^2 s.t. x0 + x1 = 1.5: Ipopt needs more than 2
+    iterations, and its iterates are feasible from the first (the row is linear)."""
+    x = ca.SX.sym("x", 2)
+    f = (1 - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2
+    reporter = IterationReporter(2, 1, 0)
+    options = {"iteration_callback": reporter, "print_time": False, "ipopt": {"sb": "yes"}}
+    options["ipopt"]["print_level"] = 0
+    solver = ca.nlpsol("s", "ipopt", {"x": x, "f": f, "g": x[0] + x[1]}, options)
+    return solver, reporter, {"x0": [0.0, 1.5], "lbg": 1.5, "ubg": 1.5}
+
+
+def test_a_capped_run_returns_its_best_feasible_iterate():
+    """Capped at 2 iterations: without stall the cap's status; with it the lowest feasible
+    iterate, solved, and Ipopt's word says so."""
+    solver, reporter, arguments = _rosenbrock_on_a_line()
+    plain = run_nlp(solver, reporter, "", 2, **arguments)
+    assert plain.status == "max_iterations"
+    kept = run_nlp(solver, reporter, "", 2, stall=True, **arguments)
+    assert kept.status == "solved" and kept.return_status.startswith("Best_Feasible_Iterate_At_")
+    assert abs(kept.x.sum() - 1.5) <= STALL_FEASIBLE
+    assert kept.objective < 0.1 * (1 + 100 * 1.5**2)  # far below the start's, 226
+    assert kept.iterations == 2
+    converged = run_nlp(solver, reporter, "", None, stall=True, **arguments)
+    assert converged.return_status == "Solve_Succeeded"
+    assert converged.objective <= kept.objective

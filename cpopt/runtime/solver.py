@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import casadi as ca
@@ -195,10 +195,20 @@ then certified and verified like any other; a creeping run's iterates were feasi
 every few tens of iterations, to 1e-6 rarely)."""
 
 
+STALL_NEARLY = 1e-2
+"""The largest constraint violation of an iterate whose objective still tells a stall
+(:class:`Stall`): a creeping run's iterates swing between feasible and violations of 1e-3 to
+1e-1 (a random PRR transfer with six switches: feasible to 7e-6 at iteration 343, objective
+7029.06; 1e-2 to 5e-2 from there on, 7019.7 at iteration 434 and no more feasible iterate by
+its 500th)."""
+
+
 class Stall:
     """Ipopt's "solved to an acceptable level" by the objective's progress: a run whose
     feasible iterates' objective has moved less than :data:`STALL_CHANGE` (relative) over
-    :data:`STALL_WINDOW` iterations stops at a feasible iterate.
+    :data:`STALL_WINDOW` iterations stops, and so does one whose nearly feasible iterate
+    (violations up to :data:`STALL_NEARLY`) is that close to the best feasible objective a
+    window before; the run then returns its best feasible iterate (:class:`BestFeasible`).
 
     Ipopt's own acceptable test needs the scaled dual infeasibility small for a number of
     iterations in a row; a flat plan's NLP with many switches can creep along a valley with it
@@ -213,18 +223,52 @@ class Stall:
         self.best_aged = math.inf
 
     def stalled(self, iteration: int, objective: float, infeasibility: float) -> bool:
-        """True when this iterate is feasible and its objective within STALL_CHANGE of the
-        best feasible one at least STALL_WINDOW iterations before it."""
-        if not math.isfinite(objective) or infeasibility > STALL_FEASIBLE:
+        """True when this iterate is nearly feasible (STALL_NEARLY) and its objective within
+        STALL_CHANGE of the best feasible one at least STALL_WINDOW iterations before it."""
+        if not math.isfinite(objective) or infeasibility > STALL_NEARLY:
             return False
-        self.feasible.append((iteration, objective))
-        while self.feasible[self.aged][0] <= iteration - STALL_WINDOW:
+        if infeasibility <= STALL_FEASIBLE:
+            self.feasible.append((iteration, objective))
+        while self.aged < len(self.feasible) and self.feasible[self.aged][0] <= (
+            iteration - STALL_WINDOW
+        ):
             self.best_aged = min(self.best_aged, self.feasible[self.aged][1])
             self.aged += 1
         if not math.isfinite(self.best_aged):
             return False
         reference = self.best_aged
         return abs(objective - reference) <= STALL_CHANGE * max(abs(reference), 1e-12)
+
+
+class BestFeasible:
+    """The feasible iterate (violations up to :data:`STALL_FEASIBLE`) with the lowest objective
+    a run has passed: what a run that stalls, or ends without converging, returns. Its
+    constraints hold like a converged plan's, and the flat plan is then certified and verified
+    like any other; it is the optimum only up to how far the run had come (Ipopt's word
+    ``Best_Feasible_Iterate_At_<iteration>`` says so)."""
+
+    def __init__(self) -> None:
+        self.objective, self.iteration = math.inf, 0
+        self.x = self.lam_x = self.lam_g = None
+
+    def offer(self, iteration: int, objective: float, infeasibility: float, arg) -> None:
+        """Keep this iterate (nlpsol's outputs ``arg``: x, f, g, lam_x, lam_g, lam_p) when it
+        is feasible and lower than the best so far."""
+        if infeasibility > STALL_FEASIBLE or not objective < self.objective:
+            return
+        self.objective, self.iteration = objective, iteration
+        self.x, self.lam_x, self.lam_g = (np.asarray(arg[i], float).ravel() for i in (0, 3, 4))
+
+    def run(self, total: int, elapsed: float) -> NlpRun | None:
+        """The NlpRun of this iterate (None without one) for a run of ``total`` iterations
+        that took ``elapsed`` [s]."""
+        if self.x is None:
+            return None
+        return NlpRun(
+            x=self.x, objective=self.objective,
+            return_status=f"Best_Feasible_Iterate_At_{self.iteration}", status="solved",
+            iterations=total, solve_time_s=elapsed, lam_g=-self.lam_g, lam_x=self.lam_x,
+        )  # fmt: skip
 
 
 class IterationReporter(ca.Callback):
@@ -281,6 +325,7 @@ class IterationReporter(ca.Callback):
         stalled at a feasible iterate (:class:`Stall`)."""
         self.count, self.label, self.stop, self.limit = 0, label, None, limit
         self.stall, self.stalled = (Stall() if stall else None), False
+        self.best = BestFeasible() if stall else None
         self.capped, self.abandon, self.abandoned = False, abandon, False
         self.deadline, self.late = deadline, False
         self.bounds = (
@@ -309,6 +354,7 @@ class IterationReporter(ca.Callback):
         if self.abandon is not None:
             self.abandoned = bool(self.abandon(self.count, float(arg[1]), infeasibility))
         if self.stall is not None:
+            self.best.offer(self.count, float(arg[1]), infeasibility, arg)
             self.stalled = self.stall.stalled(self.count, float(arg[1]), infeasibility)
         self.late = time.monotonic() > self.deadline
         stop = self.stop is not None or self.capped or self.abandoned or self.late or self.stalled
@@ -350,12 +396,18 @@ def run_nlp(
     ipopt, status, iterations = read_stats(solver.stats())
     if reporter is not None and reporter.stalled:
         ipopt, status = f"Stalled_Acceptable_At_{iterations}", "solved"
+        best = reporter.best.run(iterations, elapsed) if reporter.best else None
+        if best is not None:  # the creep's lowest feasible iterate, not its last
+            return replace(best, return_status=f"{ipopt}_Best_At_{reporter.best.iteration}")
     if reporter is not None and reporter.capped:
         ipopt, status = f"Iteration_Cap_{limit}", "max_iterations"
     if reporter is not None and reporter.abandoned:
         ipopt, status = f"Abandoned_Dominated_At_{iterations}", "dominated"
     if reporter is not None and reporter.late:
         ipopt, status = f"Search_Deadline_At_{iterations}", "time_limit"
+    fallback = reporter.best if reporter is not None and reporter.best is not None else None
+    if status not in ("solved", "dominated") and fallback is not None and fallback.x is not None:
+        return fallback.run(iterations, elapsed)
     return NlpRun(
         x=np.asarray(solution["x"]).ravel(),
         objective=float(solution["f"]),
@@ -372,7 +424,9 @@ __all__ = [
     "IPOPT_STATUS",
     "STALL_CHANGE",
     "STALL_FEASIBLE",
+    "STALL_NEARLY",
     "STALL_WINDOW",
+    "BestFeasible",
     "IterationReporter",
     "NlpRun",
     "PlannerDetails",
