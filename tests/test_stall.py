@@ -70,13 +70,14 @@ def test_a_nearly_feasible_creep_stops_against_the_best_feasible_iterate():
 def test_the_best_feasible_iterate_is_the_lowest_feasible_one():
     best = BestFeasible()
     assert best.run(5, 0.1) is None
-    for i, (objective, violation) in enumerate([(3.0, 0.0), (1.0, 1.0), (2.0, 0.0), (2.5, 0.0)]):
+    iterates = [(0.5, 0.0), (3.0, 0.0), (1.0, 1.0), (2.0, 0.0), (2.5, 0.0)]  # the first: the start
+    for i, (objective, violation) in enumerate(iterates):
         arg = [np.full(2, float(i)), objective, 0.0, np.zeros(2), np.ones(1), np.zeros(0)]
         best.offer(i + 1, objective, STALL_FEASIBLE * violation * 10, arg)
     run = best.run(9, 0.5)
     assert (run.objective, run.status, run.iterations) == (2.0, "solved", 9)
-    assert run.return_status == "Best_Feasible_Iterate_At_3"
-    np.testing.assert_array_equal(run.x, [2.0, 2.0])
+    assert run.return_status == "Best_Feasible_Iterate_At_4"
+    np.testing.assert_array_equal(run.x, [3.0, 3.0])
     np.testing.assert_array_equal(run.lam_g, [-1.0])  # NlpRun's sign: positive at a lower bound
 
 

@@ -253,8 +253,10 @@ class BestFeasible:
 
     def offer(self, iteration: int, objective: float, infeasibility: float, arg) -> None:
         """Keep this iterate (nlpsol's outputs ``arg``: x, f, g, lam_x, lam_g, lam_p) when it
-        is feasible and lower than the best so far."""
-        if infeasibility > STALL_FEASIBLE or not objective < self.objective:
+        is feasible, lower than the best so far and not the run's start (``iteration`` 1, Ipopt's
+        iteration 0: a start Ipopt could not step from, its Hessian not a number, is no plan;
+        a random RPR swing-down's closed-form start was kept so and failed verification)."""
+        if iteration <= 1 or infeasibility > STALL_FEASIBLE or not objective < self.objective:
             return
         self.objective, self.iteration = objective, iteration
         self.x, self.lam_x, self.lam_g = (np.asarray(arg[i], float).ravel() for i in (0, 3, 4))
