@@ -35,6 +35,7 @@ from ..runtime import progress
 from ..runtime.budget import remaining
 from ..runtime.solver import SolverStats, run_nlp
 from . import switching
+from .basis import refine_basis
 from .path_timing import chosen_points
 from .refine import (
     CERTIFICATION,
@@ -495,6 +496,8 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
             search = replace(
                 search, summary=summary, figures={**search.figures, "summary": summary}
             )
+    if o.refine_basis and search.best.status == "solved":
+        search = _with_finer_basis(problem, solve, search, deadline)
     attempts, best = search.attempts, search.best
     if len(set(best.signs)) == 1:
         message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
@@ -522,6 +525,20 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
         ),
     )
     return OptimizeResult(status=best.status, plan=best.plan, solver=stats)
+
+
+def _with_finer_basis(problem: Problem, solve, search, deadline: float):
+    """The search with its plan's basis refined (:func:`cpopt.flatopt.basis.refine_basis`):
+    the refinements among its attempts, their figures as ``solver.search.basis``."""
+    best, more, figures = refine_basis(problem, solve, search.best, deadline)
+    summary = f"{search.summary}; basis: {figures['summary']}"
+    return replace(
+        search,
+        attempts=(*search.attempts, *more),
+        best=best,
+        summary=summary,
+        figures={**search.figures, "summary": summary, "basis": figures},
+    )
 
 
 __all__ = ["SIGN_NAMES", "FlatDetails", "OptimizeResult", "SignAttempt", "optimize"]

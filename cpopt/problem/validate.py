@@ -333,6 +333,13 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
             f"phase, and optimizer.coefficients is {o.coefficients}: lower the degree or raise "
             "the coefficients",
         )
+    if o.refine_basis and o.curve != "bspline":
+        raise ProblemError(
+            source,
+            "optimizer.refine_basis",
+            f"refine_basis halves a B-spline's knot intervals, and optimizer.curve is "
+            f"{o.curve}: use curve: bspline or leave refine_basis false",
+        )
     count = o.coefficients if o.curve == "bspline" else o.degree + 1
     if o.curve != "path_timing" and count < 2 * ends:
         key = "optimizer.coefficients" if o.curve == "bspline" else "optimizer.degree"
