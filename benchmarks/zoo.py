@@ -31,6 +31,7 @@ Usage::
     pip install -e .
     python benchmarks/zoo.py --count 30 --seed 1
     python benchmarks/zoo.py --count 3 --seed 0 --intervals 60 --save /tmp/zoo   # quick
+    python benchmarks/zoo.py --count 30 --seed 1 --refine-basis   # the same draws, finer bases
 
 ``--save DIR`` writes each drawn problem (its ``auto`` version) as ``DIR/<name>.yaml``, so that
 a bad case can be run alone with ``cpopt solve``.
@@ -280,14 +281,23 @@ def _valid(data: dict) -> bool:
     return True
 
 
-def zoo(count: int, seed: int, intervals: int, time_limit: float, save: Path | None):
-    """Draw and run ``count`` problems; yields each Row, then the redraw count."""
+def zoo(
+    count: int,
+    seed: int,
+    intervals: int,
+    time_limit: float,
+    save: Path | None,
+    refine_basis: bool = False,
+):
+    """Draw and run ``count`` problems (with ``optimizer.refine_basis`` set to
+    ``refine_basis``); yields each Row, then the redraw count."""
     rng = np.random.default_rng(seed)
     redraws = 0
     pool = collocation_pool()
     for i in range(count):
         for _ in range(MAX_REDRAWS):
             data = draw(rng, f"zoo{seed}_{i:02d}")
+            data["optimizer"]["refine_basis"] = refine_basis
             collocation = run_collocation(data, intervals, pool) if _valid(data) else None
             if collocation is not None and collocation > 0:
                 break
@@ -351,6 +361,11 @@ def main(argv=None) -> int:
     parser.add_argument("--intervals", type=int, default=200, help="collocation intervals N")
     parser.add_argument("--time-limit", type=float, default=20.0, help="per flat solve [s]")
     parser.add_argument("--save", type=Path, help="write the drawn problems here")
+    parser.add_argument(
+        "--refine-basis",
+        action="store_true",
+        help="set optimizer.refine_basis in every draw (the same draws: the flag draws nothing)",
+    )
     args = parser.parse_args(argv)
     rows: list[Row] = []
     redraws = 0
@@ -358,7 +373,8 @@ def main(argv=None) -> int:
         f"{'name':10s} {'problem':26s} {'colloc':>10s} {'one_sign':>10s} {'s':>5s} "
         f"{'auto':>10s} {'s':>5s} {'status':10s} pattern (auto) / search"
     )
-    for item in zoo(args.count, args.seed, args.intervals, args.time_limit, args.save):
+    runs = zoo(args.count, args.seed, args.intervals, args.time_limit, args.save, args.refine_basis)
+    for item in runs:
         if isinstance(item, int):
             redraws = item
             break
