@@ -81,14 +81,14 @@ def test_the_best_feasible_iterate_is_the_lowest_feasible_one():
     np.testing.assert_array_equal(run.lam_g, [-1.0])  # NlpRun's sign: positive at a lower bound
 
 
-def _rosenbrock_on_a_line():
+def _rosenbrock_on_a_line(max_iter: int = 3000):
     """min (1 - x0)^2 + 100 (x1 - x0^2)^2 s.t. x0 + x1 = 1.5: Ipopt needs more than 2
     iterations, and its iterates are feasible from the first (the row is linear)."""
     x = ca.SX.sym("x", 2)
     f = (1 - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2
     reporter = IterationReporter(2, 1, 0)
     options = {"iteration_callback": reporter, "print_time": False, "ipopt": {"sb": "yes"}}
-    options["ipopt"]["print_level"] = 0
+    options["ipopt"].update(print_level=0, max_iter=max_iter)
     solver = ca.nlpsol("s", "ipopt", {"x": x, "f": f, "g": x[0] + x[1]}, options)
     return solver, reporter, {"x0": [0.0, 1.5], "lbg": 1.5, "ubg": 1.5}
 
@@ -107,3 +107,10 @@ def test_a_capped_run_returns_its_best_feasible_iterate():
     converged = run_nlp(solver, reporter, "", None, stall=True, **arguments)
     assert converged.return_status == "Solve_Succeeded"
     assert converged.objective <= kept.objective
+
+
+def test_a_run_ipopt_gave_up_on_stays_failed():
+    """Ipopt's own iteration limit (2) is not cpopt's cap: no feasible iterate is kept."""
+    solver, reporter, arguments = _rosenbrock_on_a_line(max_iter=2)
+    run = run_nlp(solver, reporter, "", None, stall=True, **arguments)
+    assert (run.status, run.return_status) == ("max_iterations", "Maximum_Iterations_Exceeded")

@@ -242,7 +242,8 @@ class Stall:
 
 class BestFeasible:
     """The feasible iterate (violations up to :data:`STALL_FEASIBLE`) with the lowest objective
-    a run has passed: what a run that stalls, or ends without converging, returns. Its
+    a run has passed: what a run that stalls, or that cpopt cuts (its iteration cap, the
+    search's deadline), returns. Its
     constraints hold like a converged plan's, and the flat plan is then certified and verified
     like any other; it is the optimum only up to how far the run had come (Ipopt's word
     ``Best_Feasible_Iterate_At_<iteration>`` says so)."""
@@ -407,9 +408,13 @@ def run_nlp(
         ipopt, status = f"Abandoned_Dominated_At_{iterations}", "dominated"
     if reporter is not None and reporter.late:
         ipopt, status = f"Search_Deadline_At_{iterations}", "time_limit"
-    fallback = reporter.best if reporter is not None and reporter.best is not None else None
-    if status not in ("solved", "dominated") and fallback is not None and fallback.x is not None:
-        return fallback.run(iterations, elapsed)
+    # only a run cpopt cut (its cap, the search's deadline) keeps its best feasible iterate:
+    # where Ipopt itself gave up (its own max_iter, a failed restoration), refining that iterate
+    # blew up (a random RRR swing-down's one-sign run: 1000 iterations, then four refinement
+    # rounds from 2.3e4 to 1.5e7 and out of reach, 18 s of its 20)
+    cut = reporter is not None and (reporter.capped or reporter.late)
+    if cut and reporter.best is not None and reporter.best.x is not None:
+        return reporter.best.run(iterations, elapsed)
     return NlpRun(
         x=np.asarray(solution["x"]).ravel(),
         objective=float(solution["f"]),
