@@ -9,7 +9,7 @@ with the same pattern of signs imposed costs 1544 and without it 1522
 interval of every phase halved (``n`` coefficients of degree ``d`` become ``2 (n - d) + d``,
 a basis that holds the coarser one exactly), started from the plan, its switch times held,
 while a refinement lowers the cost by at least :data:`GAIN`, the schema's most coefficients
-allow one more, and the search's deadline has not passed.
+allow one more (at most :data:`HALVINGS`), and the search's deadline has not passed.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import time
 from dataclasses import replace
 
 from ..closedform.trajectory import sample
-from ..problem import Problem
+from ..problem import MAX_COEFFICIENTS, Problem
 from ..runtime import progress
 from .seeded import solve_pattern
 from .switching import Solve, pattern_of
@@ -33,15 +33,14 @@ feasible iterate stands): from the plan, a random RPR transfer took 99 (20 coeff
 HALVINGS = 2
 """Most refinements (14 coefficients of degree 8 become 20, then 32): a third, to 56, lowered
 the two plans above by 1.6 % and 1.7 % for 25 s and 28 s, and solved neither."""
-MOST = 60
-"""Most coefficients per phase and coordinate (the schema's bound on ``coefficients``)."""
 
 
 def finer(problem: Problem) -> Problem | None:
-    """The problem with every knot interval halved, or None past :data:`MOST` coefficients."""
+    """The problem with every knot interval halved, or None past the schema's most
+    coefficients (:data:`cpopt.problem.MAX_COEFFICIENTS`)."""
     o = problem.spec.optimizer
     count = 2 * (o.coefficients - o.degree) + o.degree
-    if count > MOST:
+    if count > MAX_COEFFICIENTS:
         return None
     optimizer = o.model_copy(update={"coefficients": count})
     return replace(problem, spec=problem.spec.model_copy(update={"optimizer": optimizer}))
@@ -81,17 +80,17 @@ def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.in
         count = current.spec.optimizer.coefficients
         progress.stage(f"flat optimizer: the plan's basis refined to {count} coefficients")
         step_tic = time.perf_counter()
-        start = sample(best.plan)
-        attempt = solve_pattern(solve, current, pattern_of(best), start, ITERATIONS)
+        attempt = solve_pattern(solve, current, pattern_of(best), sample(best.plan), ITERATIONS)
         attempts.append(attempt)
         steps.append({"coefficients": count, "status": attempt.status,
                       "objective": attempt.objective, "iterations": attempt.iterations,
                       "time_s": time.perf_counter() - step_tic})  # fmt: skip
         gain = (best.objective - attempt.objective) / max(abs(best.objective), 1e-12)
-        if attempt.status != "solved" or gain < GAIN:
+        if attempt.status != "solved":
+            why = f"{count} coefficients did not solve ({attempt.status}): stopped"
+            break
+        if gain < GAIN:
             why = f"{count} coefficients lowered the cost by {gain:.2%}: stopped"
-            if attempt.status != "solved":
-                why = f"{count} coefficients did not solve ({attempt.status}): stopped"
             break
         best = attempt
         why = f"{count} coefficients: the most refinements ({HALVINGS})"
@@ -99,4 +98,4 @@ def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.in
     return best, attempts, figures
 
 
-__all__ = ["GAIN", "HALVINGS", "ITERATIONS", "MOST", "finer", "refine_basis"]
+__all__ = ["GAIN", "HALVINGS", "ITERATIONS", "finer", "refine_basis"]

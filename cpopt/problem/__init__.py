@@ -16,6 +16,7 @@ from .gamma import GammaSide, gamma_segments, gamma_sides
 from .messages import REMOVED_KEYS
 from .schema import (
     DEFAULT_MAX_TIME,
+    MAX_COEFFICIENTS,
     MAX_SWITCHES,
     NAME,
     UNION_TAGS,
@@ -49,6 +50,7 @@ from .validate import PHYSICAL_RANGES, check_tracking, plant_links
 __all__ = [
     "ARM_KINDS",
     "DEFAULT_MAX_TIME",
+    "MAX_COEFFICIENTS",
     "MAX_SWITCHES",
     "NAME",
     "PHYSICAL_RANGES",

@@ -212,6 +212,8 @@ class PathSpec(_Spec):
 
 MAX_SWITCHES = 8
 """Most switches of the sign of gamma the optimizer may add to a motion."""
+MAX_COEFFICIENTS = 60
+"""Most B-spline coefficients per phase and coordinate (``optimizer.coefficients``)."""
 
 
 class OptimizerSpec(_Spec):
@@ -219,7 +221,7 @@ class OptimizerSpec(_Spec):
 
     curve: Literal["bspline", "polynomial", "path_timing"] = "bspline"
     degree: Annotated[int, WHOLE, Field(ge=7, le=15)] = 8
-    coefficients: Annotated[int, WHOLE, Field(ge=8, le=60)] = 14
+    coefficients: Annotated[int, WHOLE, Field(ge=8, le=MAX_COEFFICIENTS)] = 14
     objective: (
         Literal[OBJECTIVES] | dict[str, Annotated[float, Field(ge=0, allow_inf_nan=False)]]
     ) = "torque"
