@@ -114,3 +114,17 @@ def test_a_run_ipopt_gave_up_on_stays_failed():
     solver, reporter, arguments = _rosenbrock_on_a_line(max_iter=2)
     run = run_nlp(solver, reporter, "", None, stall=True, **arguments)
     assert (run.status, run.return_status) == ("max_iterations", "Maximum_Iterations_Exceeded")
+
+
+def test_a_stall_never_returns_an_infeasible_iterate():
+    """A run whose only feasible iterate was its start, then nearly feasible at the same
+    objective for a window: the stall test says stop, but no feasible iterate is kept, so the
+    reporter goes on (the run is not accepted at a violated iterate)."""
+    reporter = IterationReporter(2, 1, 0)
+    reporter.start("", lbg=[1.5], ubg=[1.5], stall=True)
+    for i in range(1, STALL_WINDOW + 20):
+        g = 1.5 if i == 1 else 1.5 + 0.1 * STALL_NEARLY
+        arg = [np.zeros(2), np.array(1.0), np.array([g]), np.zeros(2), np.zeros(1), np.zeros(0)]
+        reporter.eval(arg)
+        assert not reporter.stalled
+    assert reporter.best.x is None

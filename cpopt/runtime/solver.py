@@ -358,7 +358,11 @@ class IterationReporter(ca.Callback):
             self.abandoned = bool(self.abandon(self.count, float(arg[1]), infeasibility))
         if self.stall is not None:
             self.best.offer(self.count, float(arg[1]), infeasibility, arg)
-            self.stalled = self.stall.stalled(self.count, float(arg[1]), infeasibility)
+            # a stall returns a feasible iterate: this one, or the best kept (none when the
+            # only feasible one was the start, which BestFeasible does not keep)
+            returnable = infeasibility <= STALL_FEASIBLE or self.best.x is not None
+            stalled = self.stall.stalled(self.count, float(arg[1]), infeasibility)
+            self.stalled = stalled and returnable
         self.late = time.monotonic() > self.deadline
         stop = self.stop is not None or self.capped or self.abandoned or self.late or self.stalled
         return [1 if stop else 0]
