@@ -4,7 +4,8 @@ Along each ``--plans`` plan, every ``--period`` seconds, :func:`cpopt.flatopt.re
 re-plans from the newest plan's state perturbed by normal noise (``--dq`` [rad or m],
 ``--dqd`` [rad/s or m/s]), as :mod:`cpopt.tracking.mpc` does in its loop: the compensator
 held, warm started from the newest plan, its samples and the newest solved re-plan's
-multipliers. ``--rounds`` repeats the sweep with new noise. It prints per plan::
+multipliers. ``--rounds`` repeats the sweep with new noise; ``--method`` picks the re-plan's solver
+(``ipopt``, the default, or ``sqp``). It prints per plan::
 
     LOOP <plan> replans=<n> solved=<%> median_ms=<ms> p99_ms=<ms> cpu_median_ms=<ms>
          cpu_p99_ms=<ms> iterations=<median> statuses=<status:count,...>
@@ -31,11 +32,13 @@ import numpy as np
 
 import cpopt
 from cpopt.closedform.trajectory import sample, sample_at
-from cpopt.flatopt.replan import Replan, replan
+from cpopt.flatopt.replan import METHODS, Replan, replan
 from cpopt.problem import bundled_problems
 
 
-def sweep(solution, period: float, dq: float, dqd: float, rng) -> list[tuple[Replan, float]]:
+def sweep(
+    solution, period: float, dq: float, dqd: float, rng, method: str = "ipopt"
+) -> list[tuple[Replan, float]]:
     """One sweep of re-plans every ``period`` [s] from the newest plan's perturbed states:
     each re-plan and the CPU time of this process it took [s] (unlike its wall time, not
     inflated by other processes on the machine: the figure to compare designs by)."""
@@ -48,7 +51,7 @@ def sweep(solution, period: float, dq: float, dqd: float, rng) -> list[tuple[Rep
         qd = now.qd[0] + rng.normal(0.0, dqd, 3)
         tic = time.process_time()
         r = replan(problem, newest, float(t), q, qd, seed=samples, warm=warm,
-                   free_compensator=False)  # fmt: skip
+                   free_compensator=False, method=method)  # fmt: skip
         if r.status == "holding":
             break
         out.append((r, time.process_time() - tic))
@@ -83,18 +86,19 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=3, help="sweeps per plan (3)")
     parser.add_argument("--seed", type=int, default=0, help="noise seed")
     parser.add_argument("--profile", default=None, help="cProfile the first plan to FILE")
+    parser.add_argument("--method", choices=METHODS, default="ipopt", help="re-plan solver")
     args = parser.parse_args(argv)
     files = {f.stem: f for f in bundled_problems()}
     for i, name in enumerate(args.plans.split(",")):
         solution = cpopt.solve(cpopt.load(files[name]))
         rng = np.random.default_rng(args.seed)
-        sweep(solution, args.period, args.dq, args.dqd, rng)  # builds, compiles: untimed
+        sweep(solution, args.period, args.dq, args.dqd, rng, args.method)  # builds: untimed
         profiler = cProfile.Profile() if args.profile and i == 0 else None
         if profiler:
             profiler.enable()
         replans = [
             r for _ in range(args.rounds) for r in sweep(solution, args.period, args.dq,
-                                                         args.dqd, rng)
+                                                         args.dqd, rng, args.method)
         ]  # fmt: skip
         if profiler:
             profiler.disable()

@@ -12,7 +12,7 @@ import numbers
 import numpy as np
 
 from .closedform.plan import CPPlan
-from .flatopt.replan import Multipliers, Replan
+from .flatopt.replan import METHODS, Multipliers, Replan
 from .flatopt.replan import replan as solve_remaining
 from .io.safe_yaml import echo as echo_value
 from .solution import Solution
@@ -55,6 +55,7 @@ def replan(
     deadline_s: float | None = None,
     warm: Multipliers | None = None,
     free_compensator: bool = True,
+    method: str = "ipopt",
 ) -> Replan:
     """Re-plan a solved flat plan from the measured joint state (q, qd) at time t.
 
@@ -62,7 +63,8 @@ def replan(
     pattern of signs of gamma and its switch times still ahead, chooses the compensator's xi
     and eta at t (within the problem's bounds, see :mod:`cpopt.flatopt.remaining_motion`),
     and has the problem's objective and limits; it is warm started from the current plan and
-    solved by Ipopt within ``deadline_s``.
+    solved within ``deadline_s`` by Ipopt on the lifted NLP, or by a dense SQP on the NLP's
+    core variables (:mod:`cpopt.flatopt.replan_sqp`).
 
     Parameters
     ----------
@@ -82,6 +84,8 @@ def replan(
         The previous re-plan's :attr:`~cpopt.flatopt.replan.Replan.multipliers`.
     free_compensator : bool
         False holds xi and eta at the plan's values at t.
+    method : str
+        ``ipopt`` (the default) or ``sqp``.
 
     Returns
     -------
@@ -102,6 +106,8 @@ def replan(
     current = plan if plan is not None else solution.plan
     arguments = (_checked_time(t, current), _vector(q, "q"), _vector(qd, "qd"))
     _check_options(deadline_s, warm, free_compensator)
+    if not isinstance(method, str) or method not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {echo(method)}")
     if current.planner != "optimize" or solution.problem.planner != "optimize":
         raise ValueError(
             f"{solution.name}: re-planning needs a flat plan of planner: optimize "
@@ -114,6 +120,7 @@ def replan(
         deadline_s=math.inf if deadline_s is None else float(deadline_s),
         warm=warm,
         free_compensator=free_compensator,
+        method=method,
     )
 
 

@@ -9,6 +9,7 @@ import pytest
 import cpopt
 from cpopt.closedform.trajectory import sample, sample_at
 from cpopt.flatopt.remaining_motion import NEAR_NODE, remaining
+from cpopt.flatopt.replan import METHODS
 from cpopt.verify.simulate import simulate_open_loop
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,12 +30,15 @@ def tail_cost(plan, t: float) -> float:
     return float(np.trapezoid((tau**2).sum(axis=1), tt))
 
 
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("free_compensator", [False, True])
-def test_a_replan_from_the_plans_own_state_reproduces_it(transfer, free_compensator):
+def test_a_replan_from_the_plans_own_state_reproduces_it(transfer, free_compensator, method):
     solution, seed = transfer
     plan, t = solution.plan, 0.4
     now = sample_at(plan, [t], seed)
-    r = cpopt.replan(solution, t, now.q[0], now.qd[0], free_compensator=free_compensator)
+    r = cpopt.replan(
+        solution, t, now.q[0], now.qd[0], free_compensator=free_compensator, method=method
+    )
     assert r.status == "solved" and not r.kept_previous
     new = r.plan
     assert new.t0 == pytest.approx(t)
@@ -52,7 +56,8 @@ def test_a_replan_from_the_plans_own_state_reproduces_it(transfer, free_compensa
     assert np.abs(b.q[0] - now.q[0]).max() < 1e-9  # it starts where the arm is
 
 
-def test_a_replan_from_a_perturbed_state_reaches_the_goal_on_the_model(transfer):
+@pytest.mark.parametrize("method", METHODS)
+def test_a_replan_from_a_perturbed_state_reaches_the_goal_on_the_model(transfer, method):
     solution, seed = transfer
     t = 0.3
     now = sample_at(solution.plan, [t], seed)
@@ -60,7 +65,7 @@ def test_a_replan_from_a_perturbed_state_reaches_the_goal_on_the_model(transfer)
     # the margin on gamma binds near the end of this plan)
     q = now.q[0] + np.array([0.004, -0.004, 0.01])  # [rad]
     qd = now.qd[0] + np.array([0.02, 0.0, -0.04])  # [rad/s]
-    r = cpopt.replan(solution, t, q, qd)
+    r = cpopt.replan(solution, t, q, qd, method=method)
     assert r.status == "solved"
     start = sample_at(r.plan, [t], sample(r.plan))
     assert np.allclose(start.q[0], q, atol=1e-8) and np.allclose(start.qd[0], qd, atol=1e-7)
@@ -68,10 +73,11 @@ def test_a_replan_from_a_perturbed_state_reaches_the_goal_on_the_model(transfer)
     assert replay.final_state_error < 1e-4  # [m, rad, m/s, rad/s]
 
 
-def test_a_missed_deadline_keeps_the_previous_plan(transfer):
+@pytest.mark.parametrize("method", METHODS)
+def test_a_missed_deadline_keeps_the_previous_plan(transfer, method):
     solution, seed = transfer
     now = sample_at(solution.plan, [0.3], seed)
-    r = cpopt.replan(solution, 0.3, now.q[0] + 0.01, now.qd[0], deadline_s=1e-4)
+    r = cpopt.replan(solution, 0.3, now.q[0] + 0.01, now.qd[0], deadline_s=1e-4, method=method)
     assert r.status in ("time_limit", "late")
     assert r.kept_previous and r.plan is solution.plan
     assert r.iterate is not None and r.time_s > 1e-4
@@ -93,6 +99,7 @@ def test_near_the_goal_the_plan_holds(transfer):
         ({"q": [0.0, 1.0]}, "q: expected 3 finite numbers"),
         ({"qd": [0.0, np.nan, 1.0]}, "qd: expected 3 finite numbers"),
         ({"deadline_s": 0}, "deadline_s: expected a finite number of seconds > 0, got 0"),
+        ({"method": "newton"}, "method: expected one of ipopt, sqp, got 'newton'"),
     ],
 )
 def test_bad_arguments_are_refused_by_name(transfer, change, words):

@@ -25,6 +25,7 @@ from ..closedform.plan import CPPlan
 from ..closedform.trajectory import Trajectory, reachable, sample
 from ..problem import Problem
 from ..runtime.solver import run_nlp
+from . import replan_sqp
 from .remaining_motion import Remaining, remaining, shifted
 from .transcribe import build, initial_grids
 from .warm_start import initial_guess, seeded_guess
@@ -69,6 +70,16 @@ re-plans were refused)."""
 REPLAN_ITERATIONS = 100
 """Most Ipopt iterations of a re-plan (a warm-started re-plan near its plan takes a few; one
 that needs more has lost its basin and the previous plan is the better bet)."""
+SQP_ITERATIONS = 30
+"""Most SQP iterations of a re-plan (:mod:`cpopt.flatopt.replan_sqp`; one from the plan's own
+state converges in about six)."""
+METHODS = ("ipopt", "sqp")
+"""How a re-plan solves its NLP: ``ipopt`` on the lifted NLP (the default), ``sqp`` condensed
+to its core variables (:mod:`cpopt.flatopt.replan_sqp`). Measured with
+benchmarks/replan_loop.py (two rounds, idle): on transfer_min_torque the SQP is faster (median
+29.6 against 48.1 ms) and solves a little less (86.4 against 90.9 %); on swing_up_holding it
+solves 52.7 % against 93.9 % (its iterations stall on the goal's curved rows), so Ipopt
+stays the default."""
 
 
 @dataclass(frozen=True)
@@ -193,27 +204,36 @@ def start_vector(nlp, problem: Problem, signs, seed: Trajectory, p: np.ndarray) 
     return initial_guess(nlp, problem, signs)
 
 
-def _solve(rest: Remaining, seed: Trajectory, deadline: float, iterations: int, warm, motors):
-    """(run, new plan in the plan's clock, multipliers) of one Ipopt solve of the remaining
-    motion; ``warm`` (:class:`Multipliers` or None) the previous re-plan's multipliers, used
-    when its structure is this one's (Ipopt then starts from the primal-dual point);
-    ``motors`` the torque limits to plan within (None: the problem's)."""
+def _solve(rest: Remaining, seed: Trajectory, deadline: float, limits: tuple, warm, motors):
+    """(run, new plan in the plan's clock, multipliers) of one solve of the remaining motion;
+    ``limits`` (method, most iterations); ``warm`` (:class:`Multipliers` or None) the previous
+    re-plan's multipliers, used when its structure is this one's (the solver then starts from
+    the primal-dual point); ``motors`` the torque limits to plan within (None: the
+    problem's)."""
     from . import plan_from
 
+    method, iterations = limits
     problem = with_replan_settings(rest.problem, motors)
     signs, switches = rest.signs, rest.switches
     key = structure(rest)
     resume = warm is not None and warm.structure == key
+    if method == "ipopt" and resume and warm.lam_x.size == 0:
+        resume = False  # an SQP re-plan's multipliers have no bound multipliers for Ipopt
     grids = initial_grids(problem)
-    nlp = build(problem, signs, grids, warm=True, resume=resume, gamma_grid=GAMMA_GRID,
-                ipopt=REPLAN_IPOPT)  # fmt: skip
+    nlp = build(problem, signs, grids, warm=True, resume=resume and method == "ipopt",
+                gamma_grid=GAMMA_GRID, ipopt=REPLAN_IPOPT)  # fmt: skip
     p = nlp.parameters(problem.values)
     lbx, ubx = variable_bounds(nlp, problem)
     x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
-    arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
-    if resume:
-        arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
-    run = run_nlp(nlp.solver, nlp.reporter, "", iterations, None, deadline, **arguments)
+    if method == "sqp":
+        lam0 = -warm.lam_g if resume else None  # NlpRun's sign back
+        bounds = (lbx, ubx, nlp.lbg, nlp.ubg)
+        run = replan_sqp.solve(nlp, x0, p, bounds, iterations, deadline, lam0)
+    else:
+        arguments = {"x0": x0, "p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
+        if resume:
+            arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
+        run = run_nlp(nlp.solver, nlp.reporter, "", iterations, None, deadline, **arguments)
     multipliers = Multipliers(key, run.lam_x, run.lam_g) if run.status == "solved" else warm
     try:
         plan, _, _ = plan_from(problem, nlp, run.x, p, signs, switches)
@@ -247,10 +267,11 @@ def replan(
     qd,
     deadline_s: float = math.inf,
     seed: Trajectory | None = None,
-    iterations: int = REPLAN_ITERATIONS,
+    iterations: int | None = None,
     warm: Multipliers | None = None,
     free_compensator: bool = True,
     torque_limit=None,
+    method: str = "ipopt",
 ) -> Replan:
     """Re-plan the remaining motion of ``plan`` from the measured joint state at time t.
 
@@ -269,8 +290,8 @@ def replan(
         later (``late``) keeps the previous plan.
     seed : Trajectory, optional
         ``sample(plan)``, when the caller has it (a loop re-planning from the same plan).
-    iterations : int
-        Most Ipopt iterations.
+    iterations : int, optional
+        Most solver iterations (None: :data:`SQP_ITERATIONS` or :data:`REPLAN_ITERATIONS`).
     warm : Multipliers, optional
         The previous re-plan's multipliers (:attr:`Replan.multipliers`): a re-plan of the same
         structure starts from them.
@@ -278,6 +299,8 @@ def replan(
         xi and eta at t free (the default) or held at the plan's.
     torque_limit : sequence of (float or None), optional
         The motors' torque limits [N m or N] the re-plan keeps (None: the problem's).
+    method : str
+        One of :data:`METHODS`: Ipopt on the lifted NLP (the default) or the condensed SQP.
 
     Returns
     -------
@@ -291,7 +314,10 @@ def replan(
     if rest is None:
         return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
     seed = sample(plan) if seed is None else seed
-    run, new, multipliers = _solve(rest, seed, deadline, iterations, warm, torque_limit)
+    if iterations is None:
+        iterations = SQP_ITERATIONS if method == "sqp" else REPLAN_ITERATIONS
+    limits = (method, iterations)
+    run, new, multipliers = _solve(rest, seed, deadline, limits, warm, torque_limit)
     samples = reachable(new) if run.status == "solved" and new is not None else None
     status = verdict(run.status, new, problem.spec.optimizer.gamma_min, samples)
     elapsed = time.perf_counter() - tic
@@ -314,8 +340,10 @@ def replan(
 
 
 __all__ = [
+    "METHODS",
     "REPLAN_IPOPT",
     "REPLAN_ITERATIONS",
+    "SQP_ITERATIONS",
     "Multipliers",
     "Replan",
     "reachable",
