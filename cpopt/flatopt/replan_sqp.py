@@ -13,15 +13,16 @@ few (measured on a re-plan of transfer_min_torque at 0.3 s from the plan's own s
 iterations, 11 ms, Ipopt's optimum to 1e-9 relative; Ipopt on the lifted NLP, ten iterations,
 40 ms).
 
-Each iteration solves the QP with the exact Hessian of the Lagrangian at the previous QP's
-multipliers, condensed through the lift (its own curvature included) and made positive
-definite on the active rows' face (:func:`convexified`); a line search on the l1 merit
-function f + nu sum(violations), with a second-order correction of a rejected whole step
-(:func:`corrected`), keeps the steps honest far from the optimum. It stops when the rows hold
-within :data:`FEASIBILITY` and the QP predicts less than :data:`DECREASE_TOLERANCE` of the
-objective, or at its iteration limit or deadline, returning the last iterate (an
-:class:`~cpopt.runtime.solver.NlpRun`, as Ipopt's runs are returned, so the re-plan's
-unpacking, certificate and fallback are the same).
+Rows and objective are scaled as Ipopt scales them (:class:`Scaled`). Each iteration solves
+the QP with the exact Hessian of the Lagrangian at the previous QP's multipliers, condensed
+through the lift (its own curvature included), made positive definite on the active rows'
+face (:func:`convexified`) and damped where steps keep being cut (:data:`DAMPING`); a line
+search on the l1 merit function f + nu sum(violations), with a second-order correction of a
+rejected whole step (:func:`corrected`), keeps the steps honest far from the optimum. It
+stops when the rows hold within :data:`FEASIBILITY` and the QP predicts less than
+:data:`DECREASE_TOLERANCE` of the objective, or at its iteration limit or deadline, returning
+the last iterate (an :class:`~cpopt.runtime.solver.NlpRun`, as Ipopt's runs are returned, so
+the re-plan's unpacking, certificate and fallback are the same).
 
 Measured in the re-plan loop (benchmarks/replan_loop.py, ``--method sqp``, two rounds, idle):
 transfer_min_torque median 29.6 ms a re-plan and 86.4 % solved (Ipopt 48.1 ms, 90.9 %);
@@ -64,6 +65,21 @@ measured: 10 alone left a re-plan of transfer_min_torque at 0.34 s shifted, craw
 iterations)."""
 ARMIJO = 1e-4
 """Sufficient decrease of the merit function along a step, a fraction of its predicted one."""
+DAMPING = 1e-4
+"""The first damping (Levenberg-Marquardt: a multiple of the identity added to the QP's
+Hessian in scaled variables), as a fraction of the Hessian's largest scaled diagonal entry;
+it grows tenfold after each step the line search cut below :data:`SHORT_STEP` and shrinks
+tenfold after each whole step. A step the merit function keeps cutting has a model that is
+wrong far out (the rows' curvature, stale multipliers): damping turns it towards the
+gradient, which a shorter step along the same direction does not. Measured on the re-plan
+loop (benchmarks/replan_loop.py, one round): without damping swing_up_holding solved 51 of
+74 re-plans (17 stopped at the iteration limit, their steps cut to 1/256 for twenty
+iterations); with it 65 (1e-8: 61; 1e-6: 64), transfer_min_torque 41 of 44."""
+SHORT_STEP = 0.125
+"""A step cut below this fraction raises the damping."""
+GRADIENT_SCALE = 100.0
+"""The largest gradient entry a row or the objective is scaled to (Ipopt's
+``scaledscaling_max_gradient``)."""
 BACKTRACKS = 8
 """Most halvings of a step in the line search (the last one is taken regardless)."""
 
@@ -203,12 +219,68 @@ def violation(g: np.ndarray, lbg: np.ndarray, ubg: np.ndarray) -> np.ndarray:
     return np.maximum(0.0, np.maximum(lbg - g, g - ubg))
 
 
+@dataclass(frozen=True)
+class Scaled:
+    """The condensed NLP with its rows and objective scaled as Ipopt scales them (each row and
+    the objective by min(1, :data:`GRADIENT_SCALE` / its largest gradient entry at the
+    start): rows in different units otherwise give multipliers of 1e4 and more, and the l1
+    merit function's penalty, their largest, then shortens every step to a few per cent).
+
+    Attributes
+    ----------
+    c : Condensed
+        The condensed functions.
+    p : numpy.ndarray
+        The NLP's parameters.
+    rows : numpy.ndarray
+        Each kept row's scale.
+    objective : float
+        The objective's scale.
+    """
+
+    c: Condensed
+    p: np.ndarray
+    rows: np.ndarray
+    objective: float
+
+    @classmethod
+    def at(cls, c: Condensed, p: np.ndarray, x: np.ndarray) -> Scaled:
+        """The scaling at x (from the gradients there)."""
+        _, grad, _, J, _ = c.derivatives(x, p, np.zeros(c.rows.size))
+        largest = np.max(np.abs(np.asarray(J)), axis=1, initial=0.0)
+        rows = np.minimum(1.0, GRADIENT_SCALE / np.maximum(largest, 1e-300))
+        top = float(np.max(np.abs(np.asarray(grad)), initial=0.0))
+        return cls(c, p, rows, min(1.0, GRADIENT_SCALE / max(top, 1e-300)))
+
+    def values(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """The scaled objective and rows at x."""
+        f, g = self.c.values(x, self.p)
+        return self.objective * float(f), self.rows * np.asarray(g).ravel()
+
+    def derivatives(self, x: np.ndarray, lam: np.ndarray) -> tuple:
+        """(f, grad f, g, jac g, hess L), scaled, with the scaled rows' multipliers lam."""
+        original = self.rows * lam / self.objective
+        f, grad, g, J, H = self.c.derivatives(x, self.p, original)
+        return (
+            self.objective * float(f),
+            self.objective * np.asarray(grad).ravel(),
+            self.rows * np.asarray(g).ravel(),
+            self.rows[:, None] * np.asarray(J),
+            self.objective * np.asarray(H),
+        )
+
+    def original(self, lam: np.ndarray) -> np.ndarray:
+        """The scaled rows' multipliers in the NLP's own units."""
+        return self.rows * lam / self.objective
+
+
 @dataclass
 class _Iterate:
     x: np.ndarray
     f: float
     g: np.ndarray
     lam: np.ndarray
+    alpha: float = 1.0  # the step length that reached it (0: the line search failed)
 
     def infeasibility(self, lbg, ubg) -> float:
         return float(np.sum(violation(self.g, lbg, ubg)))
@@ -254,41 +326,48 @@ def solve(
     lbx, ubx = bounds[0][:n], bounds[1][:n]
     lbg, ubg = bounds[2][c.rows], bounds[3][c.rows]
     x = np.clip(np.asarray(x0, float)[:n], lbx, ubx)
-    f, g = c.values(x, p)
-    lam = np.zeros(c.rows.size) if lam0 is None else np.asarray(lam0, float)[c.rows]
-    it = _Iterate(x, float(f), np.asarray(g).ravel(), lam)
+    scaled = Scaled.at(c, p, x)
+    lbg, ubg = scaled.rows * lbg, scaled.rows * ubg
+    f, g = scaled.values(x)
+    lam = np.zeros(c.rows.size)
+    if lam0 is not None:
+        lam = np.asarray(lam0, float)[c.rows] * scaled.objective / scaled.rows
+    it = _Iterate(x, f, g, lam)
     scale = np.maximum(1.0, np.abs(x))
-    nu, status, k = 1.0, "max_iterations", 0
+    nu, status, k, damping = 1.0, "max_iterations", 0, 0.0
     for k in range(1, iterations + 1):
         if time.monotonic() > deadline:
             status, k = "time_limit", k - 1
             break
-        step = _step(c, it, p, (lbx, ubx, lbg, ubg), scale)
+        step = _step(scaled, it, (lbx, ubx, lbg, ubg), scale, damping)
         if step is None:
             status = "infeasible" if it.infeasibility(lbg, ubg) > FEASIBILITY else "not_converged"
             break
-        feasible = np.max(violation(it.g, lbg, ubg), initial=0.0) <= FEASIBILITY
+        unscaled = violation(it.g, lbg, ubg) / scaled.rows
+        feasible = np.max(unscaled, initial=0.0) <= FEASIBILITY
         if feasible and step.decrease <= DECREASE_TOLERANCE * (1.0 + abs(it.f)):
             status = "solved"  # the point, not the step: it is feasible and optimal
             it.lam = step.lam
             break
         nu = max(nu, 1.1 * float(np.max(np.abs(step.lam), initial=0.0)))
-        it = _line_search(c, it, p, step, nu, (lbg, ubg))
-    return _run(nlp, c, it, p, status, k, time.perf_counter() - tic)
+        it = _line_search(scaled, it, step, nu, (lbg, ubg))
+        damping = _damped(damping, it.alpha, step, scale)
+    return _run(nlp, scaled, it, status, k, time.perf_counter() - tic)
 
 
-def _step(c: Condensed, it: _Iterate, p, bounds, scale: np.ndarray):
+def _step(nlp: Scaled, it: _Iterate, bounds, scale: np.ndarray, damping: float = 0.0):
     """The QP's step, its multipliers, the objective's gradient at the iterate and the QP's
-    predicted decrease of the objective, or None when the QP fails."""
+    predicted decrease of the objective, or None when the QP fails; ``damping`` adds that
+    multiple of D^-2 (D = diag(scale)) to the QP's Hessian (Levenberg-Marquardt)."""
     lbx, ubx, lbg, ubg = bounds
-    _, grad, g, J, H = c.derivatives(it.x, p, it.lam)
-    if not (np.all(np.isfinite(np.asarray(H))) and np.all(np.isfinite(np.asarray(J)))):
+    _, grad, g, J, H = nlp.derivatives(it.x, it.lam)
+    if not (np.all(np.isfinite(H)) and np.all(np.isfinite(J))):
         return None
-    g, grad, J, H = np.asarray(g).ravel(), np.asarray(grad).ravel(), np.asarray(J), np.asarray(H)
+    c = nlp.c
     qp = {"g": grad, "a": J, "lba": lbg - g, "uba": ubg - g, "lbx": lbx - it.x, "ubx": ubx - it.x}
     # the face's curvature kept; where the QP fails on it (ill-conditioned), the plain shift
     for active in (J[np.abs(it.lam) > 0], None):
-        convex = convexified(H, scale, active)
+        convex = convexified(H, scale, active) + np.diag(damping / scale**2)
         out = c.qp(h=convex, **qp)
         if c.qp.stats().get("success", False):
             d = np.asarray(out["x"]).ravel()
@@ -320,16 +399,27 @@ def corrected(c: Condensed, step: Step, g_trial: np.ndarray, bounds) -> np.ndarr
     return np.asarray(out["x"]).ravel() if c.qp.stats().get("success", False) else None
 
 
-def _trial(c: Condensed, it: _Iterate, p, x: np.ndarray, lam: np.ndarray) -> _Iterate | None:
+def _damped(damping: float, alpha: float, step: Step, scale: np.ndarray) -> float:
+    """The next iteration's damping: raised tenfold (from :data:`DAMPING` of the Hessian's
+    scaled diagonal) after a step the line search cut below :data:`SHORT_STEP`, lowered
+    tenfold after a whole one."""
+    if alpha >= 1.0:
+        return damping / 10.0 if damping > 1e-12 else 0.0
+    if alpha >= SHORT_STEP:
+        return damping
+    diagonal = np.abs(np.diag(step.qp["h"])) * scale**2
+    return max(10.0 * damping, DAMPING * float(np.max(diagonal)))
+
+
+def _trial(nlp: Scaled, x: np.ndarray, lam: np.ndarray) -> _Iterate | None:
     """The iterate at x, or None where the objective or a row is not finite."""
-    f, g = c.values(x, p)
-    f, g = float(f), np.asarray(g).ravel()
+    f, g = nlp.values(x)
     if not (math.isfinite(f) and np.all(np.isfinite(g))):
         return None
     return _Iterate(x, f, g, lam)
 
 
-def _line_search(c: Condensed, it: _Iterate, p, step: Step, nu: float, bounds) -> _Iterate:
+def _line_search(nlp: Scaled, it: _Iterate, step: Step, nu: float, bounds) -> _Iterate:
     """The iterate after the step: whole, corrected (:func:`corrected`) or shortened until
     the l1 merit function with penalty nu decreases enough (the last halving taken
     regardless)."""
@@ -344,28 +434,35 @@ def _line_search(c: Condensed, it: _Iterate, p, step: Step, nu: float, bounds) -
     alpha, last = 1.0, None
     for attempt in range(BACKTRACKS + 1):
         lam = it.lam + alpha * (step.lam - it.lam)
-        trial = _trial(c, it, p, it.x + alpha * step.d, lam)
+        trial = _trial(nlp, it.x + alpha * step.d, lam)
         if trial is not None and accepted(trial, alpha):
+            trial.alpha = alpha
             return trial
         if attempt == 0 and trial is not None:
-            d2 = corrected(c, step, trial.g, bounds)
-            second = None if d2 is None else _trial(c, it, p, it.x + d2, step.lam)
+            d2 = corrected(nlp.c, step, trial.g, bounds)
+            second = None if d2 is None else _trial(nlp, it.x + d2, step.lam)
             if second is not None and accepted(second, 1.0):
+                second.alpha = 1.0
                 return second
         last = trial if trial is not None else last
         alpha *= 0.5
-    return last if last is not None else it
+    if last is not None:
+        last.alpha = 0.0  # not accepted
+        return last
+    it.alpha = 0.0
+    return it
 
 
-def _run(nlp, c: Condensed, it: _Iterate, p, status: str, iterations: int, seconds: float):
+def _run(nlp, scaled: Scaled, it: _Iterate, status: str, iterations: int, seconds: float):
     """The iterate as an :class:`NlpRun` of the lifted NLP."""
-    x = np.r_[it.x, np.asarray(c.lift(it.x, p)).ravel()]
+    c = scaled.c
+    x = np.r_[it.x, np.asarray(c.lift(it.x, scaled.p)).ravel()]
     lam_g = np.zeros(len(nlp.rows))
-    lam_g[c.rows] = -it.lam  # NlpRun's sign: positive where a lower bound binds
+    lam_g[c.rows] = -scaled.original(it.lam)  # NlpRun's sign: positive where a lower bound binds
     words = {"solved": "Solve_Succeeded", "time_limit": "Maximum_CpuTime_Exceeded"}
     return NlpRun(
         x=x,
-        objective=it.f,
+        objective=it.f / scaled.objective,
         return_status=words.get(status, f"SQP_{status}"),
         status=status,
         iterations=iterations,
