@@ -12,9 +12,11 @@ import yaml
 
 import cpopt
 from cpopt.cli import main
+from cpopt.closedform.trajectory import sample_at
 from cpopt.io.safe_yaml import read_yaml
 from cpopt.problem import ProblemError, parse_problem
-from cpopt.tracking.mpc import MPCSettings
+from cpopt.tracking import Plant
+from cpopt.tracking.mpc import FlatMPC, MPCSettings
 
 ROOT = Path(__file__).resolve().parent.parent
 FILE = ROOT / "problems" / "transfer_min_torque.yaml"
@@ -35,8 +37,9 @@ def test_flat_mpc_reaches_the_goal_on_the_model_and_reports_its_replans(transfer
     assert outcome.controller == "flat_mpc" and outcome.success
     assert summary["final_cp_error"] < 1e-3  # [m]
     replans = summary["replans"]
-    # at 0.1 .. 0.8 s; at 0.9 s the goal is NEAR_NODE away and the plan holds
-    assert replans["count"] == 8
+    # measured at 0.1 .. 0.7 s, each starting a delay (0.1 s) later, at 0.2 .. 0.8 s; the
+    # one measured at 0.8 s would start where the goal is NEAR_NODE away, and holds
+    assert replans["count"] == 7
     assert replans["applied"] >= 4 and replans["misses"] <= 0.5
     assert 0 < replans["median_ms"] <= replans["p99_ms"]
 
@@ -126,3 +129,25 @@ def test_benchmark_prints_replan_and_score_lines():
         r"overall=[01]\.\d{3}",
         scores[0][3],
     )
+
+
+@pytest.mark.parametrize("predict", [True, False])
+def test_a_replan_starts_where_the_arm_is_when_it_takes_effect(transfer, predict):
+    """On the model, no noise: the state predicted over the delay is the arm's own, so each
+    applied re-plan starts exactly where the arm is when it takes over; re-planned from the
+    measured state instead, it starts where the arm was a delay earlier."""
+    settings = MPCSettings(period=0.1, deadline=10.0, predict=predict)
+    mpc = FlatMPC(transfer.problem, transfer.plan, 1000.0, settings)
+    run = mpc.run(Plant(transfer.plan.arm).parameters())
+    solved = [r for r in run.replans if r.solved]
+    assert len(solved) >= 4
+    errors = []
+    for r in solved:
+        k = round(r.t / mpc.period) + (0 if predict else 100)  # where it takes effect
+        start = sample_at(r.plan, [r.t], r.samples)
+        errors.append(np.abs(np.r_[run.x[k, :3] - start.q[0], run.x[k, 3:] - start.qd[0]]))
+    worst = np.max(errors)
+    if predict:
+        assert worst < 1e-9  # [rad, rad/s], measured 3e-14
+    else:
+        assert worst > 0.1  # measured 3.5 (a 0.1 s delay)
