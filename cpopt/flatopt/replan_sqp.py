@@ -24,12 +24,10 @@ stops when the rows hold within :data:`FEASIBILITY` and the QP predicts less tha
 the last iterate (an :class:`~cpopt.runtime.solver.NlpRun`, as Ipopt's runs are returned, so
 the re-plan's unpacking, certificate and fallback are the same).
 
-Measured in the re-plan loop (benchmarks/replan_loop.py, ``--method sqp``, two rounds, idle):
-transfer_min_torque median 29.6 ms a re-plan and 86.4 % solved (Ipopt 48.1 ms, 90.9 %);
-swing_up_holding 52.7 % solved (Ipopt 93.9 %): late in that motion the iterations stall
-(the reduced Hessian slightly indefinite on the goal's equality rows, steps cut to 1/16 by
-the merit function) and an iteration costs 8 ms on its 32 core variables and 182 rows. So
-Ipopt stays the re-plan's default and this solver is ``method="sqp"``.
+Measured in the re-plan loop (benchmarks/replan_loop.py, ``--method sqp``, one round, the
+other core busy): swing_up_holding 89.2 % solved (66 of 74; Ipopt, two rounds idle, 93.9 %),
+median 114 ms; transfer_min_torque 41 of 44 (Ipopt 90.9 %). An iteration costs 3-8 ms (the
+lifted NLP's functions through CasADi's MX virtual machine, 1.3-3.6 ms of it), so Ipopt stays the re-plan's default and this solver is ``method="sqp"``.
 """
 
 from __future__ import annotations
