@@ -27,7 +27,8 @@ the re-plan's unpacking, certificate and fallback are the same).
 Measured in the re-plan loop (benchmarks/replan_loop.py, ``--method sqp``, one round, the
 other core busy): swing_up_holding 89.2 % solved (66 of 74; Ipopt, two rounds idle, 93.9 %),
 median 114 ms; transfer_min_torque 41 of 44 (Ipopt 90.9 %). An iteration costs 3-8 ms (the
-lifted NLP's functions through CasADi's MX virtual machine, 1.3-3.6 ms of it), so Ipopt stays the re-plan's default and this solver is ``method="sqp"``.
+lifted NLP's functions through CasADi's MX virtual machine, 1.3-3.6 ms of it), so Ipopt
+stays the re-plan's default and this solver is ``method="sqp"``.
 """
 
 from __future__ import annotations
