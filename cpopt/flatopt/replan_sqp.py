@@ -95,8 +95,6 @@ class Condensed:
         shared; measured 1.3 ms together, 0.7 + 1.1 ms as two functions).
     values : casadi.Function
         ``(x, p) -> (f, g)``, for the line search.
-    lift : casadi.Function
-        ``(x, p) -> lifted`` (the rest of the lifted NLP's decision vector).
     rows : numpy.ndarray
         Indices of the lifted NLP's rows that are kept (all but the lifting rows).
     qp : casadi.Function
@@ -105,7 +103,6 @@ class Condensed:
 
     derivatives: ca.Function
     values: ca.Function
-    lift: ca.Function
     rows: np.ndarray
     qp: ca.Function
 
@@ -137,26 +134,27 @@ def _condense(nlp) -> Condensed:
     rows = np.array([i for i, (name, _) in enumerate(nlp.rows) if not _lifting(name)], int)
     lam = ca.MX.sym("lam", rows.size)
     lam_all = ca.MX(len(nlp.rows), 1)
-    lam_all[rows.tolist()] = lam
+    kept = rows.tolist()
+    lam_all[kept] = lam
     f, grad = solver.get_function("nlp_grad_f")(X, p)
     g, jac = solver.get_function("nlp_jac_g")(X, p)
     # Ipopt reads the upper triangle only, and the samples' blocks are whole: take the triangle
     upper = ca.triu(solver.get_function("nlp_hess_l")(X, p, 1.0, lam_all))
     H = upper + upper.T - ca.diag(ca.diag(upper))
-    g_kept = g[rows.tolist()]
+    g_kept, jac_kept = g[kept], jac[kept, :]
     # the lift's own curvature, weighted by the Lagrangian's gradient in the lifted variables
     mu = ca.MX.sym("mu", lifted.numel())
     curvature = ca.Function("lift_curvature", [x, p, mu], [ca.hessian(ca.dot(mu, lifted), x)[0]])
-    mu_value = grad[n:] + ca.mtimes(jac[rows.tolist(), n:].T, lam)
+    mu_value = grad[n:] + ca.mtimes(jac_kept[:, n:].T, lam)
     H_condensed = ca.mtimes([T.T, H, T]) + curvature(x, p, mu_value)
     derivatives = ca.Function(
         "condensed_derivatives",
         [x, p, lam],
-        [f, ca.mtimes(T.T, grad), g_kept, ca.densify(ca.mtimes(jac[rows.tolist(), :], T)),
+        [f, ca.mtimes(T.T, grad), g_kept, ca.densify(ca.mtimes(jac_kept, T)),
          ca.densify(H_condensed)],
     )  # fmt: skip
     f_only = solver.get_function("nlp_f")(X, p)
-    g_only = solver.get_function("nlp_g")(X, p)[rows.tolist()]
+    g_only = solver.get_function("nlp_g")(X, p)[kept]
     values = ca.Function("condensed_values", [x, p], [f_only, g_only])
     qp = ca.conic(
         "replan_qp",
@@ -164,7 +162,7 @@ def _condense(nlp) -> Condensed:
         {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(rows.size, n)},
         {"error_on_fail": False},
     )
-    return Condensed(derivatives, values, ca.Function("lift", [x, p], [lifted]), rows, qp)
+    return Condensed(derivatives, values, rows, qp)
 
 
 def _lifting(name: str) -> bool:
@@ -235,21 +233,27 @@ class Scaled:
         Each kept row's scale.
     objective : float
         The objective's scale.
+    start : tuple
+        (x, multipliers in the NLP's units, outputs of :attr:`Condensed.derivatives`) of the
+        evaluation the scaling came from, which the first iteration uses again.
     """
 
     c: Condensed
     p: np.ndarray
     rows: np.ndarray
     objective: float
+    start: tuple
 
     @classmethod
-    def at(cls, c: Condensed, p: np.ndarray, x: np.ndarray) -> Scaled:
-        """The scaling at x (from the gradients there)."""
-        _, grad, _, J, _ = c.derivatives(x, p, np.zeros(c.rows.size))
-        largest = np.max(np.abs(np.asarray(J)), axis=1, initial=0.0)
+    def at(cls, c: Condensed, p: np.ndarray, x: np.ndarray, lam: np.ndarray) -> Scaled:
+        """The scaling at x (from the gradients there), lam the kept rows' multipliers in the
+        NLP's own units (the first iteration's)."""
+        outputs = c.derivatives(x, p, lam)
+        largest = np.max(np.abs(np.asarray(outputs[3])), axis=1, initial=0.0)
         rows = np.minimum(1.0, GRADIENT_SCALE / np.maximum(largest, 1e-300))
-        top = float(np.max(np.abs(np.asarray(grad)), initial=0.0))
-        return cls(c, p, rows, min(1.0, GRADIENT_SCALE / max(top, 1e-300)))
+        top = float(np.max(np.abs(np.asarray(outputs[1])), initial=0.0))
+        objective = min(1.0, GRADIENT_SCALE / max(top, 1e-300))
+        return cls(c, p, rows, objective, (x, lam, outputs))
 
     def values(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """The scaled objective and rows at x."""
@@ -258,8 +262,11 @@ class Scaled:
 
     def derivatives(self, x: np.ndarray, lam: np.ndarray) -> tuple:
         """(f, grad f, g, jac g, hess L), scaled, with the scaled rows' multipliers lam."""
-        original = self.rows * lam / self.objective
-        f, grad, g, J, H = self.c.derivatives(x, self.p, original)
+        original = self.original(lam)
+        x0, lam0, outputs = self.start
+        if not (np.array_equal(x, x0) and np.array_equal(original, lam0)):
+            outputs = self.c.derivatives(x, self.p, original)
+        f, grad, g, J, H = outputs
         return (
             self.objective * float(f),
             self.objective * np.asarray(grad).ravel(),
@@ -325,13 +332,11 @@ def solve(
     lbx, ubx = bounds[0][:n], bounds[1][:n]
     lbg, ubg = bounds[2][c.rows], bounds[3][c.rows]
     x = np.clip(np.asarray(x0, float)[:n], lbx, ubx)
-    scaled = Scaled.at(c, p, x)
+    lam = np.zeros(c.rows.size) if lam0 is None else np.asarray(lam0, float)[c.rows]
+    scaled = Scaled.at(c, p, x, lam)
     lbg, ubg = scaled.rows * lbg, scaled.rows * ubg
-    f, g = scaled.values(x)
-    lam = np.zeros(c.rows.size)
-    if lam0 is not None:
-        lam = np.asarray(lam0, float)[c.rows] * scaled.objective / scaled.rows
-    it = _Iterate(x, f, g, lam)
+    f, _, g, _, _ = scaled.derivatives(x, lam * scaled.objective / scaled.rows)
+    it = _Iterate(x, f, g, lam * scaled.objective / scaled.rows)
     scale = np.maximum(1.0, np.abs(x))
     nu, status, k, damping = 1.0, "max_iterations", 0, 0.0
     for k in range(1, iterations + 1):
@@ -455,7 +460,7 @@ def _line_search(nlp: Scaled, it: _Iterate, step: Step, nu: float, bounds) -> _I
 def _run(nlp, scaled: Scaled, it: _Iterate, status: str, iterations: int, seconds: float):
     """The iterate as an :class:`NlpRun` of the lifted NLP."""
     c = scaled.c
-    x = np.r_[it.x, np.asarray(c.lift(it.x, scaled.p)).ravel()]
+    x = np.r_[it.x, np.asarray(nlp.lift(it.x, scaled.p)).ravel()]
     lam_g = np.zeros(len(nlp.rows))
     lam_g[c.rows] = -scaled.original(it.lam)  # NlpRun's sign: positive where a lower bound binds
     words = {"solved": "Solve_Succeeded", "time_limit": "Maximum_CpuTime_Exceeded"}

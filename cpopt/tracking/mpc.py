@@ -263,6 +263,7 @@ class _Loop:
         self.generators = noise.generators(index)
         self.delay_steps = delay
         self.step = mpc.step(delay)
+        self.prediction: ca.Function | None = None
         self.every, self.delay = mpc.settings.steps(mpc.period)
         self.current = Stretch(mpc.plan, mpc.first, 0)
         self.newest, self.warm, self.samples = mpc.plan, None, None
@@ -308,7 +309,9 @@ class _Loop:
     def _predicted(self, k: int, measured: np.ndarray, c: np.ndarray) -> np.ndarray:
         """The measured state (6,) at k carried ``delay`` periods on the model (the nominal
         plant, no noise) under the law in effect."""
-        f = _stretch_function(self.step, self.delay)
+        if self.prediction is None:  # one Function for every re-plan of the run
+            self.prediction = _stretch_function(self.step, self.delay)
+        f = self.prediction
         params = np.repeat(self.mpc.model[:, None], self.delay, axis=1)
         schedule = self.current.schedule(k, self.delay)
         quiet = np.zeros((NOISE_ROWS, self.delay))
