@@ -327,7 +327,7 @@ def test_a_patterned_seed_ends_at_the_holding_torque_where_the_flat_plan_does():
     patterned seed's actuated joints do not accelerate at a held end (measured 1e-9 rad/s^2 or
     less), where without the held rows a random RRR swing-up's ended at gamma = 2.5 m/s^2
     against its flat plan's g0."""
-    from cpopt.flatopt.holding import holding_pattern
+    from cpopt.problem.holding import holding_pattern
 
     problem = _auto(ROOT / "problems" / "swing_up_holding.yaml")
     seed = coarse_seed(problem)

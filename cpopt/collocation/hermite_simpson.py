@@ -27,11 +27,11 @@ import numpy as np
 
 from ..closedform.nodes import node_names
 from ..closedform.plan import Node
-from ..flatopt.holding import holding_pattern
 from ..model.dynamics import rk4_step, state_derivative
 from ..model.kinematics import BRANCH_MARGIN, branch_margin, kinematic_functions
 from ..model.objectives import weights
 from ..problem import Problem
+from ..problem.holding import holding_pattern
 from ..runtime.budget import check_stop
 from ..runtime.solver import SolverStats, ipopt_options, read_stats
 from ..verify.simulate import pose_states
@@ -168,7 +168,7 @@ def _gamma_rows(problem: Problem, X, M, torque, sigma: np.ndarray, at_switch, ce
 
 
 def _held_rows(problem: Problem, X, torque: Torques, held: tuple[bool, bool]) -> tuple:
-    """At a held rest end (``held``: the start's and the goal's, :func:`cpopt.flatopt.holding.
+    """At a held rest end (``held``: the start's and the goal's, :func:`cpopt.problem.holding.
     holding_pattern`) the actuated joints' accelerations are zero: the torque there is the
     holding torque, as the flat plan's xi = 0 with the base still makes it. Without these rows a
     patterned seed of a random RRR swing-up ended at gamma = 2.5 m/s^2 where its flat plan must

@@ -26,8 +26,8 @@ import numpy as np
 from ..closedform.nodes import MIN_PHASE, NODE_FIELDS, node_names
 from ..closedform.trajectory import Trajectory, gamma_crossings
 from ..problem import Problem
+from ..problem.holding import holding_pattern
 from ..runtime.budget import check_time
-from .holding import holding_pattern
 from .transcribe import GAMMA_SAFETY
 
 SEED_INTERVALS = 30

@@ -41,11 +41,11 @@ from ..model import flat
 from ..model.limits import Limit
 from ..model.objectives import default_hessian, squared_norm, weights
 from ..problem import Problem
+from ..problem.holding import holding_pattern
 from ..runtime.solver import IterationReporter, ipopt_options
 from . import path_timing
 from .assemble import SampleBlock, assemble
 from .constraints import Constraints
-from .holding import holding_pattern
 from .ipopt_settings import GAMMA_GRID, RESUME_OPTIONS, WARM_GAMMA_GRID, warm_options
 from .layout import Layout
 from .quadrature import Grid, PhaseSamples, piece_counts

@@ -7,7 +7,9 @@ radians everywhere in code.
 Modules: :mod:`~cpopt.problem.schema` (the pydantic models), :mod:`~cpopt.problem.validate`
 (the checks across keys, with :mod:`~cpopt.problem.gamma` and
 :mod:`~cpopt.problem.path_checks`), :mod:`~cpopt.problem.messages` (validation errors as key
-paths) and :mod:`~cpopt.problem.build` (:class:`Problem` from data or a file).
+paths), :mod:`~cpopt.problem.build` (:class:`Problem` from data or a file) and
+:mod:`~cpopt.problem.holding` (which rest ends a plan holds at the holding torque, read by both
+planners).
 """
 
 from ..model.robot import ARM_KINDS

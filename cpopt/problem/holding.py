@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..closedform.nodes import node_names
-from ..problem import Problem
+from .build import Problem
 
 
 def rest_ends(problem: Problem) -> list[bool]:
