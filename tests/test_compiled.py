@@ -2,6 +2,9 @@
 
 import logging
 import multiprocessing
+import os
+import signal
+import time
 from pathlib import Path
 
 import casadi as ca
@@ -62,6 +65,60 @@ def test_two_processes_may_build_the_same_library_at_once(tmp_path):
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary left
     lib = compiled.load_library("tiny", [source], _refuse, tmp_path)
     assert float(lib.functions["tiny"]([0.5, 3.0])) == pytest.approx(np.sin(0.5) * 9.0)
+
+
+class _Stop(BaseException):
+    """Stands for a time limit or a Ctrl-C arriving while the compiler runs."""
+
+
+@pytest.mark.skipif(os.name != "posix", reason="the detached compile is POSIX's")
+def test_a_compile_cut_short_still_fills_the_cache(tmp_path, monkeypatch):
+    """A solve stopped while the compiler runs (here 0.3 s into a compile that takes more
+    than 1 s) leaves the compile to finish: the library and its index appear within seconds,
+    and the next load uses them without generating code or compiling again (the compiler is
+    then one that cannot work)."""
+    slow = tmp_path / "slow-cc"
+    slow.write_text(f'#!/bin/sh\nsleep 1\nexec {compiled.compiler()} "$@"\n')
+    slow.chmod(0o755)
+    monkeypatch.setenv("CC", str(slow))
+    source = tmp_path / "generator.py"
+    source.write_text("v")
+
+    def stop(signum, frame):
+        raise _Stop
+
+    previous = signal.signal(signal.SIGALRM, stop)
+    signal.setitimer(signal.ITIMER_REAL, 0.3)
+    try:
+        with pytest.raises(_Stop):
+            compiled.load_library("tiny", [source], _tiny, tmp_path)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    deadline = time.monotonic() + 20
+    while not list(tmp_path.glob("tiny-*.json")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert len(list(tmp_path.glob("tiny-casadi*"))) == 1
+    monkeypatch.setenv("CC", "false")  # found on the PATH, and fails whatever it is given
+    lib = compiled.load_library("tiny", [source], _refuse, tmp_path)  # the index is there
+    assert lib.compiled
+    assert float(lib.functions["tiny"]([0.5, 3.0])) == pytest.approx(np.sin(0.5) * 9.0)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".build-")]
+
+
+def test_a_failed_compile_runs_interpreted_and_says_why(tmp_path, monkeypatch, caplog):
+    broken = tmp_path / "broken-cc"
+    broken.write_text('#!/bin/sh\necho "no such header" >&2\nexit 1\n')
+    broken.chmod(0o755)
+    monkeypatch.setenv("CC", str(broken))
+    source = tmp_path / "generator.py"
+    source.write_text("v")
+    with caplog.at_level(logging.WARNING, logger="cpopt"):
+        lib = compiled.load_library("tiny", [source], _tiny, tmp_path)
+    assert not lib.compiled
+    assert float(lib.functions["tiny"]([0.5, 3.0])) == pytest.approx(np.sin(0.5) * 9.0)
+    assert "no such header" in caplog.records[-1].getMessage()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".build-")]
 
 
 def test_without_a_compiler_the_functions_run_interpreted_and_say_so(tmp_path, monkeypatch, caplog):

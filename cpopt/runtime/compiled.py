@@ -8,7 +8,9 @@ the CasADi version and the compiler flags points at the library file, which is i
 hash of its code. Every file is written under a temporary name and moved into place
 (``os.replace``), so two processes may build the same library at once and neither reads half a
 file. Compiling says so in one line on the ``cpopt`` logger (stderr by default); without a
-compiler, or when compiling fails, the functions run interpreted and one line says so.
+compiler, or when compiling fails, the functions run interpreted and one line says so. A compile
+that the solve waiting for it stops (a time limit, Ctrl-C) finishes on its own and fills the
+cache for the next solve (:func:`_compile`).
 """
 
 from __future__ import annotations
@@ -84,15 +86,51 @@ def _write_atomically(path: Path, data: bytes) -> None:
         raise
 
 
-def _compile(code: str, target: Path, cc: str) -> None:
-    """Compile C code into the shared library ``target`` (atomically)."""
-    with tempfile.TemporaryDirectory(dir=target.parent, prefix=".build-") as tmp:
-        src = Path(tmp) / "library.c"
-        src.write_text(code)
-        out = Path(tmp) / f"library{_SUFFIX}"
-        cmd = [cc, *FLAGS, "-shared", "-fPIC", str(src), "-o", str(out), "-lm"]
-        subprocess.run(cmd, check=True, capture_output=True, text=True)
-        os.replace(out, target)
+DETACHED = (
+    "cc=$1 src=$2 out=$3 target=$4 log=$5 dir=$6 entry=$7 index=$8; shift 8; "
+    '"$cc" "$@" "$src" -o "$out" -lm 2>"$log" && mv -f "$out" "$target" && '
+    'printf "%s" "$entry" >"$dir/index" && mv -f "$dir/index" "$index" && rm -rf "$dir"'
+)
+"""The compile as a shell command that moves its output and then the index file pointing at
+it into place itself (POSIX)."""
+
+
+def _compile(code: str, target: Path, cc: str, index: Path, entry: str) -> None:
+    """Compile C code into the shared library ``target`` (atomically), then write ``entry``
+    to the index file ``index`` (atomically).
+
+    On POSIX the compiler runs in a session of its own that moves its output and the index
+    into place itself (:data:`DETACHED`), so that a solve stopped while it waits (its time
+    limit, Ctrl-C, a parent killing it) leaves the compile to finish: the next solve then
+    finds the library instead of compiling it again. (A verification library first needed in
+    a search's last second was cut at every run of a 20-s limit, each such solve ending
+    without its verification.)
+    """
+    build = Path(tempfile.mkdtemp(dir=target.parent, prefix=".build-"))
+    src, out, log = build / "library.c", build / f"library{_SUFFIX}", build / "compiler.log"
+    src.write_text(code)
+    flags = [*FLAGS, "-shared", "-fPIC"]
+    if os.name != "posix":
+        try:
+            cmd = [cc, *flags, str(src), "-o", str(out), "-lm"]
+            subprocess.run(cmd, check=True, capture_output=True, text=True)
+            os.replace(out, target)
+            _write_atomically(index, entry.encode())
+        finally:
+            shutil.rmtree(build, ignore_errors=True)
+        return
+    args = [cc, str(src), str(out), str(target), str(log), str(build), entry, str(index), *flags]
+    process = subprocess.Popen(
+        ["sh", "-c", DETACHED, "sh", *args],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,  # not stopped with this process (Ctrl-C, a killed group)
+    )
+    if process.wait() != 0:
+        message = log.read_text() if log.exists() else ""
+        shutil.rmtree(build, ignore_errors=True)
+        raise subprocess.CalledProcessError(process.returncode, cc, stderr=message)
 
 
 def _load(path: Path, names: Sequence[str]) -> dict[str, ca.Function]:
@@ -151,14 +189,15 @@ def load_library(
     path = directory / f"{name}-casadi{ca.__version__}-{digest}{_SUFFIX}"
     try:
         directory.mkdir(parents=True, exist_ok=True)
+        entry = {"library": path.name, "functions": [f.name() for f in functions]}
         if not path.exists():
             # a one-time wait of seconds: say so (the default handler shows warnings only)
             LOG.warning("cpopt: compiling %s once with %s (cached in %s)", name, cc, directory)
             tic = time.perf_counter()
-            _compile(code, path, cc)
+            _compile(code, path, cc, index, json.dumps(entry))
             LOG.info("cpopt: compiled %s in %.1f s", name, time.perf_counter() - tic)
-        entry = {"library": path.name, "functions": [f.name() for f in functions]}
-        _write_atomically(index, json.dumps(entry).encode())
+        else:  # compiled by another process, or by a compile whose solve was stopped
+            _write_atomically(index, json.dumps(entry).encode())
         return Library(_load(path, entry["functions"]), path)
     except (OSError, subprocess.CalledProcessError, RuntimeError) as err:
         why = getattr(err, "stderr", None) or str(err)
