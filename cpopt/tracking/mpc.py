@@ -263,7 +263,7 @@ class _Loop:
         self.generators = noise.generators(index)
         self.delay_steps = delay
         self.step = mpc.step(delay)
-        self.prediction: ca.Function | None = None
+        self.stretches: dict[int, ca.Function] = {}
         self.every, self.delay = mpc.settings.steps(mpc.period)
         self.current = Stretch(mpc.plan, mpc.first, 0)
         self.newest, self.warm, self.samples = mpc.plan, None, None
@@ -306,12 +306,18 @@ class _Loop:
             self.newest, self.samples = result.plan, result.samples
             self.pending.append((k + self.delay, Stretch(result.plan, controller, start)))
 
+    def _stretch(self, length: int) -> ca.Function:
+        """``length`` periods of the run's period function (:func:`_stretch_function`), built
+        once a length for the whole run: the stretches between re-plans, and the prediction
+        over the delay, have a few lengths only."""
+        if length not in self.stretches:
+            self.stretches[length] = _stretch_function(self.step, length)
+        return self.stretches[length]
+
     def _predicted(self, k: int, measured: np.ndarray, c: np.ndarray) -> np.ndarray:
         """The measured state (6,) at k carried ``delay`` periods on the model (the nominal
         plant, no noise) under the law in effect."""
-        if self.prediction is None:  # one Function for every re-plan of the run
-            self.prediction = _stretch_function(self.step, self.delay)
-        f = self.prediction
+        f = self._stretch(self.delay)
         params = np.repeat(self.mpc.model[:, None], self.delay, axis=1)
         schedule = self.current.schedule(k, self.delay)
         quiet = np.zeros((NOISE_ROWS, self.delay))
@@ -334,7 +340,6 @@ class _Loop:
         horizon = ref.steps
         X, k = ref.x[0].copy(), 0
         c = initial_controller_state(mpc.first, self.delay_steps)
-        step = self.step
         diverged = None
         while k < horizon:
             self._apply_due(k)
@@ -344,7 +349,7 @@ class _Loop:
             if k > 0 and k % self.every == 0:
                 self._replan(k, X, c, measurement[:6, 0])
                 self._apply_due(k)  # a delay of zero periods is refused: nothing due now
-            f = _stretch_function(step, length)
+            f = self._stretch(length)
             params = np.repeat(self.parameters[:, None], length, axis=1)
             schedule = self.current.schedule(k, length)
             X_next, c_next, tau, qdd, cp, sat = call_buffered(
