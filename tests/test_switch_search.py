@@ -23,6 +23,7 @@ from cpopt.flatopt.seeded import worth_polishing
 from cpopt.flatopt.switching import (
     DOMINATED_EARLIEST,
     dominated,
+    grow,
     neighbours,
     preference,
     seed_pattern,
@@ -365,3 +366,18 @@ def test_the_pose_fit_keeps_the_links_base_where_the_seed_has_it(transfer, trans
         misfits.append(float(np.hypot(*(traj.z[:, :2] - base).T).max()))
     assert misfits[0] < 0.01  # [m]
     assert misfits[1] > 0.04
+
+
+def test_greedy_steps_need_a_solved_plan_and_say_so():
+    """With an unsolved bound the greedy steps try nothing and name the reason (they said
+    "0 switch(es): the most allowed" before, as if the budget had stopped them)."""
+    optimizer = SimpleNamespace(gamma_switches="auto")
+    problem = SimpleNamespace(spec=SimpleNamespace(optimizer=optimizer))
+    bound = SimpleNamespace(status="not_converged", switch_times=())
+
+    def solve(*args, **kwargs):
+        raise AssertionError("no candidate is solved without a plan to step from")
+
+    best, attempts, said = grow(problem, solve, bound)
+    assert best is bound and attempts == []
+    assert said == "no solved plan to step from (the bound not_converged)"

@@ -595,6 +595,8 @@ def grow(
     wanted = problem.spec.optimizer.gamma_switches
     budget = MAX_SWITCHES if wanted == "auto" else wanted
     attempts: list = []
+    if best.status != "solved":  # the steps add a switch to a plan: none to add it to
+        return best, attempts, f"no solved plan to step from (the bound {best.status})"
     left = iterations
     while best.status == "solved" and len(best.switch_times) < budget:
         if time.monotonic() > deadline:
