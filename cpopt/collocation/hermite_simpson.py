@@ -5,18 +5,11 @@ The rockit transcription (:mod:`cpopt.collocation.transcribe`) is the benchmark 
 it takes 1.5-2.5 s for 30 intervals (rockit's Python transcription and the expansion of its
 Radau collocation equations), ten times its solve. The seed needs less: the same problem,
 coarse, without the regularity constraint. Here the joint state x = (q, qd) at the knots and
-the interval midpoints, the torques and the joint accelerations at each interval's start,
-midpoint and end are the decision variables; the dynamics are rows in implicit form (the
-inverse dynamics, one small CasADi function mapped over the points, equal to the torques, the
-passive joint's zero), and the Hermite-Simpson conditions (the midpoint of the cubic through
-the knots, Simpson's rule) tie the states. Unexpanded, the NLP builds in about 0.05 s.
-
-Implicit, because the forward dynamics (the inertia matrix inverted symbolically) make every
-derivative costly: the Hessian of one point's forward dynamics is 7040 instructions and that
-of gamma through them 7211, against 3271 for the inverse dynamics and a few hundred for gamma
-of (q, qd, qdd) (:func:`~cpopt.collocation.joint_plan.motion_gamma`). Measured on a random RPR
-transfer's seed (30 intervals, 8 Ipopt iterations): 20 ms an iteration, 12 of them the
-Hessian, in the forward form (expanded to SX the same, after a 0.8-s build).
+the interval midpoints and piecewise-constant torques are the decision variables; the
+dynamics, one small CasADi function, is mapped over knots and midpoints, and the
+Hermite-Simpson conditions (the midpoint of the cubic through the knots, Simpson's rule) tie
+them. Unexpanded, the NLP builds in about 0.05 s and Ipopt solves it in 0.2 s (measured on the
+benchmark transfer: 12 iterations, the same objective and crossings as rockit's N = 30).
 
 It takes problems whose objective is ``torque`` (others are refused,
 :class:`SeedUnsupportedError`, and the caller uses the rockit transcription); freed node times
@@ -34,7 +27,7 @@ import numpy as np
 
 from ..closedform.nodes import node_names
 from ..closedform.plan import Node
-from ..model.dynamics import arm_dynamics, rk4_step, state_derivative
+from ..model.dynamics import rk4_step, state_derivative
 from ..model.kinematics import BRANCH_MARGIN, branch_margin, kinematic_functions
 from ..model.objectives import weights
 from ..problem import Problem
@@ -42,7 +35,7 @@ from ..problem.holding import holding_pattern
 from ..runtime.budget import check_stop
 from ..runtime.solver import SolverStats, ipopt_options, read_stats
 from ..verify.simulate import pose_states
-from .joint_plan import JointPlan, motion_gamma
+from .joint_plan import JointPlan, joint_functions
 from .transcribe import NODE_FIELDS, cold_guess, warm_guess
 
 SUBSTEPS = 8
@@ -153,69 +146,19 @@ class Torques:
         return tau[:-1].ravel() if not self.linear else np.r_[tau[:-1].ravel(), tau[1:].ravel()]
 
 
-class Accelerations:
-    """The joint accelerations (3,) at each interval's start, midpoint and end, decision
-    variables of the implicit transcription (at a knot the two intervals' differ where the
-    torque steps)."""
-
-    def __init__(self, n: int) -> None:
-        values = ca.MX.sym("A", 3, 3 * n)
-        self.variables = ca.vec(values)
-        self.start, self.middle, self.end = values[:, :n], values[:, n : 2 * n], values[:, 2 * n :]
-        self.n = n
-
-    def rows(self, arm, X, M, torque: Torques) -> ca.MX:
-        """The dynamics at every point: the inverse dynamics of (q, qd, qdd) less the actuated
-        torques, the passive joint's residual zero (9n rows [N m or N])."""
-        inverse = arm_dynamics(arm)["inverse"].map(self.n)
-        zero = ca.MX(1, self.n)
-        points = (
-            (X[:, :-1], self.start, torque.start),
-            (M, self.middle, torque.middle),
-            (X[:, 1:], self.end, torque.end),
-        )
-        rows = [inverse(x[:3, :], x[3:, :], a) - ca.vertcat(tau, zero) for x, a, tau in points]
-        return ca.vertcat(*map(ca.vec, rows))
-
-    def guess(self, arm, states: np.ndarray, middle: np.ndarray, torque: Torques, values):
-        """The accelerations' part of the initial vector from a warm guess: the forward
-        dynamics at the guessed knot and midpoint ``states`` ((n + 1, 6) and (n, 6)) under the
-        guessed torque ``values`` (:meth:`Torques.guess`)."""
-        split = ca.Function("split", [torque.variables], [torque.start, torque.middle, torque.end])
-        start, mid, end = (np.asarray(v) for v in split(values))
-        rhs = state_derivative(arm).map(self.n)
-        parts = [
-            rhs(states[:-1].T, start)[3:, :],
-            rhs(middle.T, mid)[3:, :],
-            rhs(states[1:].T, end)[3:, :],
-        ]
-        return np.asarray(ca.vec(ca.horzcat(*parts))).ravel()
-
-    @staticmethod
-    def of_motion(knots: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """The accelerations' part of the initial vector from a cold guess: the guessed motion's
-        own accelerations (its joint velocities differentiated at the knots), consistent with
-        its states. (The forward dynamics under the cold guess's holding torques, which the
-        explicit form implied, start the implicit form far from its rows: 57-371 Ipopt
-        iterations against 6-28 on random zoo draws' seeds.)"""
-        qdd = np.gradient(states[:, 3:], knots, axis=0)
-        parts = [qdd[:-1].T, 0.5 * (qdd[:-1] + qdd[1:]).T, qdd[1:].T]
-        return np.hstack(parts).ravel(order="F")
-
-
-def _gamma_rows(problem: Problem, X, M, A, sigma: np.ndarray, at_switch, ceiling) -> tuple:
-    """sigma gamma >= gamma_min at both knots and the midpoint of every interval, each with
-    the interval's own accelerations (:class:`Accelerations`: under its own torques; gamma
-    steps with the torque at a switch, as a xi reset makes it step in the flat plan); at the
-    knots ``at_switch`` (a boolean per knot) also ``sigma gamma <= ceiling`` on both sides.
-    Returns the rows, their lower and upper bounds."""
+def _gamma_rows(problem: Problem, X, M, torque, sigma: np.ndarray, at_switch, ceiling) -> tuple:
+    """sigma gamma >= gamma_min at both knots and the midpoint of every interval, each under
+    the interval's own torques (:class:`Torques`; gamma steps with the torque at a switch, as
+    a xi reset makes it step in the flat plan); at the knots ``at_switch`` (a boolean per knot) also
+    ``sigma gamma <= ceiling`` on both sides. Returns the rows, their lower and upper
+    bounds."""
     n = sigma.size
-    gamma = motion_gamma(problem.arm).map(n)
+    gamma = joint_functions(problem.arm).map(n)
     s = ca.DM(sigma).T
     rows = [
-        s * gamma(X[:3, :-1], X[3:, :-1], A.start),
-        s * gamma(M[:3, :], M[3:, :], A.middle),
-        s * gamma(X[:3, 1:], X[3:, 1:], A.end),
+        s * gamma(X[:3, :-1], X[3:, :-1], torque.start)[1],
+        s * gamma(M[:3, :], M[3:, :], torque.middle)[1],
+        s * gamma(X[:3, 1:], X[3:, 1:], torque.end)[1],
     ]
     gamma_min = problem.spec.optimizer.gamma_min
     upper = np.full((3, n), np.inf)
@@ -224,23 +167,24 @@ def _gamma_rows(problem: Problem, X, M, A, sigma: np.ndarray, at_switch, ceiling
     return [ca.vec(ca.vertcat(*rows))], [lower], [upper.ravel(order="F")]
 
 
-def _held_rows(A: Accelerations, held: tuple[bool, bool]) -> tuple:
+def _held_rows(problem: Problem, X, torque: Torques, held: tuple[bool, bool]) -> tuple:
     """At a held rest end (``held``: the start's and the goal's, :func:`cpopt.problem.holding.
     holding_pattern`) the actuated joints' accelerations are zero: the torque there is the
     holding torque, as the flat plan's xi = 0 with the base still makes it. Without these rows a
     patterned seed of a random RRR swing-up ended at gamma = 2.5 m/s^2 where its flat plan must
     end at g0, and the fit of its last phase swung gamma through zero (link 3 turned by 3
     rad). Returns the rows, their lower and upper bounds."""
+    rhs = state_derivative(problem.arm)
     rows = []
     if held[0]:
-        rows.append(A.start[:2, 0])
+        rows.append(rhs(X[:, 0], torque.start[:, 0])[3:5])
     if held[1]:
-        rows.append(A.end[:2, -1])
+        rows.append(rhs(X[:, -1], torque.end[:, -1])[3:5])
     zeros = np.zeros(2 * len(rows))
     return [ca.vertcat(*rows)] if rows else [], [zeros] if rows else [], [zeros] if rows else []
 
 
-def _pattern_rows(problem: Problem, X, M, A, signs, phase, steps, ceiling) -> tuple:
+def _pattern_rows(problem: Problem, X, M, torque, signs, phase, steps, ceiling) -> tuple:
     """A pattern's rows: ``sign * gamma >= gamma_min`` per interval (``phase``: each interval's
     piece of ``signs``), the ``ceiling`` at the switches' knots ``steps`` when given
     (:func:`_gamma_rows`), and the held rest ends (:func:`_held_rows`). Returns the rows, their
@@ -248,26 +192,23 @@ def _pattern_rows(problem: Problem, X, M, A, signs, phase, steps, ceiling) -> tu
     at_switch = np.zeros(X.shape[1], bool)
     at_switch[steps] = ceiling is not None
     sigma = np.asarray(signs, float)[phase]
-    rows, lower, upper = _gamma_rows(problem, X, M, A, sigma, at_switch, ceiling)
+    rows, lower, upper = _gamma_rows(problem, X, M, torque, sigma, at_switch, ceiling)
     held = holding_pattern(problem, tuple(int(s) for s in signs))
-    ends = _held_rows(A, (held[0], held[-1]))
+    ends = _held_rows(problem, X, torque, (held[0], held[-1]))
     return rows + ends[0], lower + ends[1], upper + ends[2]
 
 
-def _collocation_rows(problem: Problem, X, M, A, torque, h, index, branch: float) -> tuple:
-    """The dynamics in implicit form (:meth:`Accelerations.rows`), the Hermite-Simpson
-    conditions (the midpoint state of the cubic through the knots, Simpson's rule), the torques'
-    joins, the nodes' fields and the arm's branch: the rows, their lower and upper bounds."""
+def _collocation_rows(problem: Problem, X, M, torque, h, index, branch: float) -> tuple:
+    """The Hermite-Simpson conditions (the midpoint state of the cubic through the knots,
+    Simpson's rule), the torques' joins, the nodes' fields and the arm's branch: the rows, their
+    lower and upper bounds."""
     n = h.numel()
-    f0 = ca.vertcat(X[3:, :-1], A.start)
-    f1 = ca.vertcat(X[3:, 1:], A.end)
-    fm = ca.vertcat(M[3:, :], A.middle)
+    rhs = state_derivative(problem.arm).map(n)
+    f0, f1, fm = rhs(X[:, :-1], torque.start), rhs(X[:, 1:], torque.end), rhs(M, torque.middle)
     mid = M - 0.5 * (X[:, :-1] + X[:, 1:]) - ca.repmat(h / 8, 6, 1) * (f0 - f1)
     simpson = X[:, 1:] - X[:, :-1] - ca.repmat(h / 6, 6, 1) * (f0 + 4 * fm + f1)
-    dynamics = A.rows(problem.arm, X, M, torque)
-    g = [dynamics, ca.vec(mid), ca.vec(simpson), torque.joins]
-    count = dynamics.numel() + 12 * n + torque.joins.numel()
-    lbg, ubg = [np.zeros(count)], [np.zeros(count)]
+    g = [ca.vec(mid), ca.vec(simpson), torque.joins]
+    lbg, ubg = [np.zeros(12 * n + torque.joins.numel())], [np.zeros(12 * n + torque.joins.numel())]
     for i, k in enumerate(index):
         rows, lo, hi = _node_rows(problem, i, X[:, k])
         g.append(ca.vertcat(*rows))
@@ -353,14 +294,15 @@ def hermite_simpson(
     steps = _knots_at(knots, switches)
     torque = Torques(n, linear=signs is not None, steps=steps)
     X, M = ca.MX.sym("X", 6, n + 1), ca.MX.sym("M", 6, n)
-    A = Accelerations(n)
-    nlp, lbg, ubg = _nlp(problem, X, M, A, knots, index, torque, branch, w["torque"])
+    nlp, lbg, ubg = _nlp(problem, X, M, knots, index, torque, branch, w["torque"])
     if signs is not None:
-        rows, lower, upper = _pattern_rows(problem, X, M, A, signs, phase, steps, switch_ceiling)
+        rows, lower, upper = _pattern_rows(
+            problem, X, M, torque, signs, phase, steps, switch_ceiling
+        )
         nlp["g"], lbg, ubg = ca.vertcat(nlp["g"], *rows), lbg + lower, ubg + upper
     options = {"expand": False, "print_time": False}
     solver = ca.nlpsol("seed", "ipopt", nlp, {**options, "ipopt": _ipopt(problem, limit, deadline)})
-    x0, lbx, ubx = _start(problem, knots, torque, A, guess)
+    x0, lbx, ubx = _start(problem, knots, torque, guess)
     built = time.perf_counter()
     solution = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
     solved = time.perf_counter()
@@ -386,38 +328,31 @@ def _report(solver, solution, n: int, signs, times: tuple) -> tuple:
     return status, stats
 
 
-def _nlp(problem: Problem, X, M, A, knots: np.ndarray, index, torque: Torques, branch, weight):
+def _nlp(problem: Problem, X, M, knots: np.ndarray, index, torque: Torques, branch, weight):
     """The NLP without a pattern, for nlpsol: states X at the knots and M at the midpoints, the
-    torques, the accelerations A, the collocation, limit and branch rows
-    (:func:`_collocation_rows`), ``weight`` times the torque integral; and the rows' bounds."""
+    torques, the collocation, limit and branch rows (:func:`_collocation_rows`), ``weight``
+    times the torque integral; and the rows' bounds."""
     h = ca.DM(np.diff(knots)).T
-    g, lbg, ubg = _collocation_rows(problem, X, M, A, torque, h, index, branch)
+    g, lbg, ubg = _collocation_rows(problem, X, M, torque, h, index, branch)
     nlp = {
-        "x": ca.vertcat(ca.vec(X), torque.variables, ca.vec(M), A.variables),
+        "x": ca.vertcat(ca.vec(X), torque.variables, ca.vec(M)),
         "f": weight * torque.integral(h),
         "g": ca.vertcat(*g),
     }
     return nlp, lbg, ubg
 
 
-def _start(problem: Problem, knots: np.ndarray, torque: Torques, A: Accelerations, guess):
+def _start(problem: Problem, knots: np.ndarray, torque: Torques, guess):
     """The initial vector and the variables' bounds: the guess (cold between the nodes when
-    None) at the knots, the midpoints' states halfway, the torques per :class:`Torques`, the
-    accelerations of the motion (cold) or of the dynamics under the guessed torques (warm,
-    :class:`Accelerations`)."""
+    None) at the knots, the midpoints' states halfway, the torques per :class:`Torques`."""
     n = knots.size - 1
     q, qd, tau = cold_guess(problem, knots) if guess is None else warm_guess(guess, knots)
     states = np.column_stack([q, qd])
     middle = 0.5 * (states[:-1] + states[1:])
-    values = torque.guess(tau)
-    if guess is None:
-        accelerations = A.of_motion(knots, states)
-    else:
-        accelerations = A.guess(problem.arm, states, middle, torque, values)
-    x0 = np.r_[states.ravel(), values, middle.ravel(), accelerations]
+    x0 = np.r_[states.ravel(), torque.guess(tau), middle.ravel()]
     lbx, ubx = _box(problem, n, torque.count)
-    free = np.full(6 * n + accelerations.size, np.inf)
-    return x0, np.r_[lbx, -free], np.r_[ubx, free]
+    lbx, ubx = np.r_[lbx, np.full(6 * n, -np.inf)], np.r_[ubx, np.full(6 * n, np.inf)]
+    return x0, lbx, ubx
 
 
 def _read_plan(problem: Problem, knots, index, torque: Torques, xs: np.ndarray) -> JointPlan:

@@ -24,30 +24,6 @@ REFINE = 8
 
 
 @lru_cache(maxsize=16)
-def motion_gamma(arm: Arm) -> ca.Function:
-    """``gamma(q, qd, qdd) -> gamma`` [m/s^2]: the regularity quantity of a joint motion, from
-    the kinematics alone (no dynamics: an implicit transcription has the accelerations)."""
-    q = ca.SX.sym("q", 3)
-    qd = ca.SX.sym("qd", 3)
-    qdd = ca.SX.sym("qdd", 3)
-    return ca.Function("motion_gamma", [q, qd, qdd], [_pose_terms(arm, q, qd, qdd)[0]])
-
-
-def _pose_terms(arm: Arm, q, qd, qdd) -> tuple:
-    """(gamma, s, sdot, sddot) of a joint motion: the third link's pose s = (x, y, theta), its
-    velocity and acceleration, and gamma [m/s^2]."""
-    kin = kinematic_functions(arm)
-    s = kin["pose"](q)
-    J = kin["jacobian"](q)
-    sdot = J @ qd
-    sddot = J @ qdd + kin["jdot_qdot"](q, qd)
-    theta = s[2]
-    gamma = (
-        sddot[0] * ca.cos(theta) + (sddot[1] + arm.gravity) * ca.sin(theta) - arm.K * sdot[2] ** 2
-    )
-    return gamma, s, sdot, sddot
-
-
 def joint_functions(arm: Arm) -> ca.Function:
     """``step(q, qd, tau) -> (qdd, gamma, s, sdot, sddot)`` for the full dynamics.
 
@@ -58,8 +34,16 @@ def joint_functions(arm: Arm) -> ca.Function:
     q = ca.SX.sym("q", 3)
     qd = ca.SX.sym("qd", 3)
     tau = ca.SX.sym("tau", 2)
+    kin = kinematic_functions(arm)
     qdd = arm_dynamics(arm)["forward"](q, qd, tau)
-    gamma, s, sdot, sddot = _pose_terms(arm, q, qd, qdd)
+    s = kin["pose"](q)
+    J = kin["jacobian"](q)
+    sdot = J @ qd
+    sddot = J @ qdd + kin["jdot_qdot"](q, qd)
+    theta = s[2]
+    gamma = (
+        sddot[0] * ca.cos(theta) + (sddot[1] + arm.gravity) * ca.sin(theta) - arm.K * sdot[2] ** 2
+    )
     return ca.Function("step", [q, qd, tau], [qdd, gamma, s, sdot, sddot])
 
 
