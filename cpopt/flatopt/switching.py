@@ -598,7 +598,7 @@ def grow(
     if best.status != "solved":  # the steps add a switch to a plan: none to add it to
         return best, attempts, f"no solved plan to step from (the bound {best.status})"
     left = iterations
-    while best.status == "solved" and len(best.switch_times) < budget:
+    while len(best.switch_times) < budget:  # best stays solved: only a solved one replaces it
         if time.monotonic() > deadline:
             return best, attempts, "search deadline reached"
         if left <= 0:
