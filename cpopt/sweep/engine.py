@@ -44,12 +44,25 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+def inside_finalizer(frame) -> bool:
+    """True when ``frame`` or one of its callers is a ``__del__``: a signal lands in the
+    innermost Python frame, which under Dask's ``Future.__del__`` may be asyncio's
+    ``_write_to_self`` a few calls down (seen in CI: the KeyboardInterrupt raised there was
+    printed as an ignored exception with its traceback)."""
+    while frame is not None:
+        if frame.f_code.co_name == "__del__":
+            return True
+        frame = frame.f_back
+    return False
+
+
 @contextlib.contextmanager
 def _interrupt_noted() -> Iterator[list]:
     """Ctrl-C while the results come in is noted as well as raised: Python swallows a
     KeyboardInterrupt raised inside a ``__del__`` (Dask's ``Future.__del__`` runs often), and
     the sweep then went on recording the points whose solver children the same Ctrl-C had
-    stopped as errors, and exited 1. A Ctrl-C that lands in a ``__del__`` is only noted; the
+    stopped as errors, and exited 1. A Ctrl-C that lands in a ``__del__``, or below one
+    (:func:`inside_finalizer`), is only noted; the
     loop raises it before the next result is taken. Main thread with Python's own handler
     only (elsewhere nothing is noted)."""
     noted: list = []
@@ -60,7 +73,7 @@ def _interrupt_noted() -> Iterator[list]:
 
     def on_interrupt(signum, frame) -> None:
         noted.append(signum)
-        if frame is None or frame.f_code.co_name != "__del__":
+        if not inside_finalizer(frame):
             raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGINT, on_interrupt)
