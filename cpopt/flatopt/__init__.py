@@ -36,11 +36,13 @@ from ..runtime.budget import remaining
 from ..runtime.solver import SolverStats, run_nlp
 from . import switching
 from .basis import refine_basis
+from .feasible_start import evaluable_start
 from .path_timing import chosen_points
 from .refine import (
     CERTIFICATION,
     MAX_REFINEMENTS,
     between_samples,
+    cost_kept,
     quadrature_gaps,
     violations,
 )
@@ -281,15 +283,20 @@ def _start(nlp: FlatNLP, problem: Problem, signs: tuple[int, ...], seed) -> np.n
     return seeded_guess(nlp, problem, signs, seed)
 
 
-def _round_arguments(nlp: FlatNLP, problem: Problem, signs, seed, previous) -> dict:
+def _round_arguments(
+    nlp: FlatNLP, problem: Problem, signs, seed, previous, deadline: float = math.inf
+) -> dict:
     """nlpsol's arguments for a round: the first starts from the seed trajectory or the closed
-    form; a refinement round from the previous round's solution (``previous``: its NLP and
-    run), its core variables lifted onto the new samples, with its multipliers."""
+    form, moved where its objective is a number when it is not
+    (:func:`~cpopt.flatopt.feasible_start.evaluable_start`); a refinement round from the
+    previous round's solution (``previous``: its NLP and run), its core variables lifted onto
+    the new samples, with its multipliers."""
     p = nlp.parameters(problem.values)
     lbx, ubx = _bounds(nlp, problem)
     arguments = {"p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
     if previous is None:
         arguments["x0"] = _start(nlp, problem, signs, seed)
+        arguments["x0"], _ = evaluable_start(nlp, arguments, deadline)
     else:
         arguments["x0"] = nlp.complete(previous[1].x, p)
         arguments.update(resumed_multipliers(previous, nlp))
@@ -368,7 +375,7 @@ def solve_for_signs(
         # takes the previous round's multipliers, which are in the rows' own units
         nlp = build(problem, signs, grids, seed is not None, previous is not None, None, exact)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
-        arguments = _round_arguments(nlp, problem, signs, seed, previous)
+        arguments = _round_arguments(nlp, problem, signs, seed, previous, deadline)
         left = _round_limit(limit, iterations, round_ > 1, refine_past_limit)
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, True, **arguments)
         solve_time += run.solve_time_s
@@ -377,6 +384,8 @@ def solve_for_signs(
             nlp, run = previous
             break
         run, plan, times, terms = _unpacked(problem, nlp, run, arguments, signs, switches)
+        if previous is not None and run.status == "solved":
+            run = cost_kept(run, previous[1], refinements)
         if run.status != "solved" or time.monotonic() > deadline:
             break
         dips = between_samples(problem, plan, times)
