@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from cpopt.flatopt import optimize
+from cpopt.flatopt import optimize, solve_for_signs
 from cpopt.flatopt.seed import (
     INSIDE,
     coarse_seed,
@@ -22,11 +22,15 @@ from cpopt.flatopt.seed import (
 from cpopt.flatopt.seeded import worth_polishing
 from cpopt.flatopt.switching import (
     DOMINATED_EARLIEST,
+    Pattern,
     dominated,
+    first_attempts,
     grow,
+    needed_times,
     neighbours,
     preference,
     seed_pattern,
+    sign_assignments,
     with_switches,
 )
 from cpopt.problem import load_problem, parse_problem
@@ -381,3 +385,20 @@ def test_greedy_steps_need_a_solved_plan_and_say_so():
     best, attempts, said = grow(problem, solve, bound)
     assert best is bound and attempts == []
     assert said == "no solved plan to step from (the bound not_converged)"
+
+
+def test_the_bounds_runs_stop_at_their_iteration_limit(transfer):
+    """``first_attempts(..., limit)`` caps each one-sign run's first round (the search's bound
+    passes ONE_SIGN_LIMIT). At 3 iterations the seed's favourite sign of the benchmark transfer
+    stops there and keeps its best certified iterate (iteration 4 counted from 1); the other
+    sign's first round is cut the same way and its refinement round then runs past the cap, as
+    a solved plan's refinements must (measured: 50 iterations, one refinement)."""
+    times = needed_times(transfer)
+    patterns = [Pattern(times, signs) for signs in sign_assignments(transfer, times)]
+    attempts = first_attempts(solve_for_signs, transfer, patterns, None, 3)
+    assert len(attempts) == 2
+    first, second = attempts
+    assert first.iterations == 3 and first.refinements == 0
+    assert first.ipopt_status == "Best_Feasible_Iterate_At_4"
+    assert second.status == "solved" and second.refinements == 1
+    assert 45 <= second.iterations <= 55  # past the cap of 3: the refinement ran in full

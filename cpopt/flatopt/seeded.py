@@ -363,6 +363,13 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
     return Search(tuple(run.tried), best, summary, figures)
 
 
+ONE_SIGN_LIMIT = 500
+"""Ipopt iterations a one-sign run of the bound gets before its first solved round (its
+refinement rounds follow): twice the most a solved one took on the zoo's draws (seeds 1 and 2,
+58 solved: median 26, at most 244), where the runs that did not solve ran 500 to 1800
+iterations, up to 10 s of a 20-s search, before failing."""
+
+
 def _one_sign_bound(run: Run):
     """The best plan with the fewest switches the pins allow (one sign where nothing is
     pinned), each allowed sign solved from the closed form, the seed's favourite first."""
@@ -370,7 +377,7 @@ def _one_sign_bound(run: Run):
     times = needed_times(run.problem)
     patterns = [Pattern(times, signs) for signs in sign_assignments(run.problem, times)]
     tic = time.perf_counter()
-    attempts = first_attempts(run.solve, run.problem, patterns, run.seed)
+    attempts = first_attempts(run.solve, run.problem, patterns, run.seed, ONE_SIGN_LIMIT)
     run.stages["bound"].add_all(attempts, tic)
     run.tried += attempts
     best = max(attempts, key=preference)
@@ -381,7 +388,8 @@ def _one_sign_bound(run: Run):
     for pattern in patterns:
         if run.late():
             break
-        retry = run.attempt("bound", pattern, run.seed.trajectory, abandon=_bar(best, seeded=True))
+        bar = _bar(best, seeded=True)
+        retry = run.attempt("bound", pattern, run.seed.trajectory, ONE_SIGN_LIMIT, abandon=bar)
         best = max(best, retry, key=preference)
     return best
 

@@ -495,15 +495,20 @@ def seed_order(problem: Problem, patterns: list[Pattern], seed: Seed | None = No
 
 
 def first_attempts(
-    solve: Solve, problem: Problem, patterns: list[Pattern], seed: Seed | None = None
+    solve: Solve,
+    problem: Problem,
+    patterns: list[Pattern],
+    seed: Seed | None = None,
+    limit: int | None = None,
 ) -> list:
     """Solve the first patterns, the seed's favourite first (:func:`seed_order`); a later run
-    is abandoned once a solved one dominates it (:func:`dominated`)."""
+    is abandoned once a solved one dominates it (:func:`dominated`). ``limit`` caps each
+    run's Ipopt iterations before its first solved round (its refinements still run)."""
     attempts = []
     for pattern in seed_order(problem, patterns, seed):
         solved = [a.objective for a in attempts if a.status == "solved"]
         abandon = dominated(min(solved)) if solved else None
-        attempts.append(solve_from_nodes(solve, problem, pattern, abandon))
+        attempts.append(solve_from_nodes(solve, problem, pattern, abandon, limit))
     return attempts
 
 
