@@ -20,7 +20,7 @@ from test_cli import GOOD
 import cpopt
 from cpopt.cli import main
 from cpopt.problem import parse_problem
-from cpopt.runtime.budget import Budget, TimeLimitExceeded, check_time, enforced
+from cpopt.runtime.budget import Budget, TimeLimitExceeded, check_time, enforced, remaining
 from cpopt.runtime.progress import Progress, reporting, stage
 from cpopt.runtime.solver import run_nlp
 from cpopt.verify.integrate import DivergenceError, integrate
@@ -153,6 +153,28 @@ def test_the_switch_search_returns_its_best_plan_by_the_time_limit(tmp_path):
     stopped = [c for c in doc["solver"]["sign_choices"] if c["status"] == "time_limit"]
     assert stopped and stopped[0]["ipopt_status"].startswith("Search_Deadline_At_")
     assert doc["solver"]["objective"] == pytest.approx(3424.8, rel=1e-3)
+
+
+def test_a_stage_that_overruns_the_searchs_deadline_keeps_the_solved_plan(monkeypatch):
+    """A stage that overruns the search's deadline (here: the call after the first solved
+    attempt sleeps past the limit, as a long NLP build would) is stopped by the time limit
+    itself; the one-sign plan solved before it is returned, solved and verified, within the
+    limit's grace, not status ``time_limit``."""
+    original, made = cpopt.flatopt.solve_for_signs, []
+
+    def overrunning(*args, **options):
+        if any(a.status == "solved" for a in made):
+            time.sleep(remaining() + 0.5)  # the timer stops this sleep at the limit
+        made.append(original(*args, **options))
+        return made[-1]
+
+    monkeypatch.setattr(cpopt.flatopt, "solve_for_signs", overrunning)
+    solution = cpopt.solve(PROBLEMS / "swing_up_switches.yaml", time_limit=8)
+    assert solution.status == "solved" and solution.verification.passed()
+    search = solution.solver.details.search_figures
+    assert search["method"] == "stopped" and "stopped by the time limit of 8 s" in search["summary"]
+    assert solution.solver.objective == pytest.approx(3424.8, rel=1e-3)  # the one-sign plan
+    assert [a.status for a in made] == ["solved"]  # the second attempt never returned
 
 
 def _interrupt(args, when: str, tmp_path: Path, inherited=signal.SIG_DFL):

@@ -32,7 +32,7 @@ from ..model import flat
 from ..model.objectives import weights
 from ..problem import Problem
 from ..runtime import progress
-from ..runtime.budget import remaining
+from ..runtime.budget import remaining, stopped_by_time
 from ..runtime.solver import SolverStats, run_nlp
 from . import switching
 from .basis import refine_basis
@@ -48,6 +48,7 @@ from .refine import (
 )
 from .restart import restart
 from .seeded import search as seeded_search
+from .stopped import Recorded, stopped_search
 from .transcribe import FlatNLP, build, initial_grids, phase_pieces
 from .warm_start import exact_plan, initial_guess, seeded_guess
 
@@ -490,23 +491,14 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
         failed solve returns Ipopt's best iterate, its status and the violated constraints by
         name and time.
     """
-    o = problem.spec.optimizer
-    search, why_not = None, ""
     deadline = search_deadline()
-    if start is not None:
-        progress.stage("flat optimizer: started from the given plan")
-        search, why_not = restart(problem, partial(solve_for_signs, deadline=deadline), start)
-    solve = partial(solve_for_signs, deadline=deadline)
-    if search is None:
-        seeded = o.gamma_switches != 0 and o.switch_search == "seed"
-        search = (seeded_search if seeded else switching.search)(problem, solve, deadline)
-        if why_not:
-            summary = f"{why_not}: the usual search; {search.summary}"
-            search = replace(
-                search, summary=summary, figures={**search.figures, "summary": summary}
-            )
-    if o.refine_basis and search.best.status == "solved":
-        search = _with_finer_basis(problem, solve, search, deadline)
+    solve = Recorded(partial(solve_for_signs, deadline=deadline))
+    try:
+        search = _search(problem, start, solve, deadline)
+    except BaseException as err:  # a stage overran the deadline and the time limit struck
+        search = stopped_search(problem, solve.made) if stopped_by_time(err) else None
+        if search is None:
+            raise
     attempts, best = search.attempts, search.best
     if len(set(best.signs)) == 1:
         message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
@@ -534,6 +526,27 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
         ),
     )
     return OptimizeResult(status=best.status, plan=best.plan, solver=stats)
+
+
+def _search(problem: Problem, start: CPPlan | None, solve, deadline: float):
+    """The search the problem asks for (started from ``start`` when given), its plan's basis
+    refined with ``refine_basis``."""
+    o = problem.spec.optimizer
+    search, why_not = None, ""
+    if start is not None:
+        progress.stage("flat optimizer: started from the given plan")
+        search, why_not = restart(problem, solve, start)
+    if search is None:
+        seeded = o.gamma_switches != 0 and o.switch_search == "seed"
+        search = (seeded_search if seeded else switching.search)(problem, solve, deadline)
+        if why_not:
+            summary = f"{why_not}: the usual search; {search.summary}"
+            search = replace(
+                search, summary=summary, figures={**search.figures, "summary": summary}
+            )
+    if o.refine_basis and search.best.status == "solved":
+        search = _with_finer_basis(problem, solve, search, deadline)
+    return search
 
 
 def _with_finer_basis(problem: Problem, solve, search, deadline: float):

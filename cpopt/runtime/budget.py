@@ -42,7 +42,7 @@ class TimeLimitExceeded(BaseException):
     """
 
     def __init__(self, budget: Budget) -> None:
-        self.seconds, self.elapsed = budget.seconds, budget.elapsed
+        self.seconds, self.elapsed = budget.limit, budget.elapsed
         super().__init__(f"wall-clock limit of {self.seconds:g} s reached")
 
 
@@ -56,7 +56,7 @@ class Budget:
     """
 
     def __init__(self, seconds: float) -> None:
-        self.seconds = float(seconds)
+        self.seconds = self.limit = float(seconds)
         self.start = time.monotonic()
         self.fired = False
 
@@ -102,6 +102,31 @@ def check_stop() -> None:
     if _State.armed and _State.interrupted:
         raise KeyboardInterrupt
     check_time()
+
+
+GRACE = 0.9
+"""Seconds past the limit that a plan solved before it gets, to be sampled and verified
+(:func:`grant_grace`): a search returns its best plan by the limit plus at most 1 s, and the
+timer's repeat (:data:`REPEAT`) may take a quarter of a second of that to stop it."""
+
+
+def stopped_by_time(err: BaseException) -> bool:
+    """True when ``err`` is the active budget's stop: :class:`TimeLimitExceeded`, or another
+    error (what CasADi made of the stop) raised once the budget has fired. Never Ctrl-C."""
+    if isinstance(err, TimeLimitExceeded):
+        return True
+    budget = _State.budget
+    return isinstance(err, Exception) and budget is not None and budget.fired
+
+
+def grant_grace() -> None:
+    """Let the active budget run to its limit plus :data:`GRACE` seconds (once: a second call
+    grants nothing more; nothing outside :func:`enforced`). A search stopped by the limit
+    after it had solved a plan calls it, so that the plan is sampled and verified instead of
+    lost; the budget stays ``fired``."""
+    budget = _State.budget
+    if budget is not None:
+        budget.seconds = max(budget.seconds, budget.limit + GRACE)
 
 
 def _in_cleanup(frame) -> bool:
