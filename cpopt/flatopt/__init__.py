@@ -499,6 +499,12 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
         search = stopped_search(problem, solve.made) if stopped_by_time(err) else None
         if search is None:
             raise
+    return result_of(search)
+
+
+def result_of(search: switching.Search) -> OptimizeResult:
+    """The OptimizeResult of a search: its best plan, status and message, the iterations and
+    times of every attempt (the seeded search's collocation seed included) and its figures."""
     attempts, best = search.attempts, search.best
     if len(set(best.signs)) == 1:
         message = f"Ipopt: {best.ipopt_status} (sign of gamma: {best.sign})"
