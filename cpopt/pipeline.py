@@ -233,7 +233,7 @@ def plan_optimized(problem: Problem, partial: StageRecord, start: CPPlan | None 
             solver=result.solver,
             message=result.solver.message,
         )
-    return _evaluate(
+    solution = _evaluate(
         result.plan,
         problem.name,
         result.solver,
@@ -242,6 +242,37 @@ def plan_optimized(problem: Problem, partial: StageRecord, start: CPPlan | None 
         partial,
         Checks.of(problem),
     )
+    if result.status == "solved" and solution.status in ("verification_failed", "unreachable"):
+        return _runner_up(problem, result, solution, partial)
+    return solution
+
+
+RUNNER_UP_TIME = 0.5
+"""Seconds left in the time limit below which no other plan is verified after the search's
+best failed (a verification takes 0.05-0.3 s on the zoo's draws)."""
+
+
+def _runner_up(problem: Problem, result, failed: Solution, partial: StageRecord) -> Solution:
+    """The first of the search's next best solved plans that verifies
+    (:func:`cpopt.flatopt.runner_up.runner_ups`), else the failed solution as it was."""
+    from .flatopt.runner_up import runner_ups
+
+    for alternative in runner_ups(result, failed.message):
+        if remaining() < RUNNER_UP_TIME:
+            break
+        progress.stage("flat optimizer: the best plan failed verification, the next solved plan")
+        candidate = _evaluate(
+            alternative.plan,
+            problem.name,
+            alternative.solver,
+            alternative.status,
+            alternative.solver.message,
+            partial,
+            Checks.of(problem),
+        )
+        if candidate.ok:
+            return candidate
+    return failed
 
 
 def plan_closed_form(problem: Problem, partial: StageRecord) -> Solution:

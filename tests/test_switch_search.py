@@ -402,3 +402,30 @@ def test_the_bounds_runs_stop_at_their_iteration_limit(transfer):
     assert first.ipopt_status == "Best_Feasible_Iterate_At_4"
     assert second.status == "solved" and second.refinements == 1
     assert 45 <= second.iterations <= 55  # past the cap of 3: the refinement ran in full
+
+
+def test_a_best_plan_that_fails_verification_gives_way_to_the_next_solved_one(monkeypatch):
+    """The search's best plan of swing_up_switches (its seed's pattern) is made to fail the
+    closed-loop simulation (the first verification returns a divergence); the next solved
+    plan of the search, verified for real, is returned instead: solved, ``runner_up``, costlier
+    than the best and no costlier than the one-sign bound (3424.8)."""
+    import cpopt
+    import cpopt.pipeline
+    from cpopt.verify.simulate import DivergedVerification
+
+    real, calls = cpopt.pipeline.verify, []
+
+    def first_diverges(plan, residual, poles):
+        calls.append(plan)
+        if len(calls) == 1:
+            return DivergedVerification("closed_loop", 0.5, "the test's divergence", residual)
+        return real(plan, residual, poles)
+
+    monkeypatch.setattr(cpopt.pipeline, "verify", first_diverges)
+    solution = cpopt.solve(ROOT / "problems" / "swing_up_switches.yaml")
+    search = solution.solver.details.search_figures
+    assert solution.status == "solved" and solution.verification.passed()
+    assert search["method"] == "runner_up" and "the test's divergence" in search["summary"]
+    best = min(a.objective for a in solution.solver.details.sign_choices if a.status == "solved")
+    assert best < solution.solver.objective <= 3424.8 * (1 + 1e-3)
+    assert len(calls) == 2 and calls[1] is solution.plan
