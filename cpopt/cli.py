@@ -24,7 +24,7 @@ MAX_WORKERS = 1024
 about 150 MB), refused before any is started."""
 SWEEP_GRACE = 15.0
 """Seconds ``cpopt sweep`` gets after Ctrl-C to cancel its tasks and close its cluster before
-the process is ended (other commands get :data:`cpopt.runtime.budget.GRACE`)."""
+the process is ended (other commands get :data:`cpopt.runtime.budget.INTERRUPT_GRACE`)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -394,10 +394,10 @@ def _caused_by_interrupt(err: BaseException) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``cpopt`` command; returns the exit code."""
-    from .runtime.budget import GRACE, hard_stop_on_interrupt
+    from .runtime.budget import INTERRUPT_GRACE, hard_stop_on_interrupt
 
     words = sys.argv[1:] if argv is None else argv
-    grace = SWEEP_GRACE if words[:1] == ["sweep"] else GRACE
+    grace = SWEEP_GRACE if words[:1] == ["sweep"] else INTERRUPT_GRACE
     try:
         with hard_stop_on_interrupt(_interrupted, grace=grace, code=EXIT_INTERRUPTED):
             try:

@@ -6,8 +6,9 @@ of samples) cannot be stopped from inside. The command line therefore solves eac
 forked child process: the child runs :func:`cpopt.pipeline.solve` (which stops itself at the
 limit and returns the partial solution) and sends the :class:`~cpopt.results.Solution` back;
 the parent kills a child that overruns the limit by :data:`GRACE` seconds and reports status
-``time_limit`` with the last stage the child reached. Where ``fork`` is not available the
-problem is solved in this process.
+``time_limit`` with the last stage the child reached. Time the child's limit does not count (a
+one-time compile, :func:`cpopt.runtime.budget.uncounted`) is not counted here either. Where
+``fork`` is not available the problem is solved in this process.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ def _child(problem: Problem, conn) -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)  # a Ctrl-C ends the child at once, silently
     relay = copy.copy(progress.current())
     relay.listener = lambda text: conn.send(("stage", text))
+    relay.on_uncounted = lambda seconds: conn.send(("uncounted", seconds))
     try:
         with progress.reporting(relay, problem.name):
             solution = solve(problem)
@@ -84,13 +86,21 @@ def solve_isolated(problem: Problem) -> Solution:
     child.start()
     send.close()
     stage = "starting"  # the last stage the child reported
+    deadline, paused = start + problem.max_time + GRACE, None
     try:
-        while receive.poll(max(problem.max_time + GRACE - (time.monotonic() - start), 0)):
+        # a block the child's limit does not count (a one-time compile) pauses the deadline
+        while receive.poll(None if paused else max(deadline - time.monotonic(), 0)):
             kind, value = receive.recv()
             if kind == "solution":
                 return value
             if kind == "error":
                 raise RuntimeError(f"solving {problem.name} failed: {value}")
+            if kind == "uncounted":
+                if value is None:
+                    paused = time.monotonic()
+                else:
+                    deadline, paused = deadline + time.monotonic() - paused, None
+                continue
             stage = value
         return _killed(problem, child, stage, time.monotonic() - start)
     except EOFError:

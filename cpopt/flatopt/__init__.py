@@ -47,6 +47,7 @@ from .refine import (
     violations,
 )
 from .restart import restart
+from .samples import sample_library
 from .seeded import search as seeded_search
 from .stopped import Recorded, stopped_search
 from .transcribe import FlatNLP, build, initial_grids, phase_pieces
@@ -491,6 +492,7 @@ def optimize(problem: Problem, start: CPPlan | None = None) -> OptimizeResult:
         failed solve returns Ipopt's best iterate, its status and the violated constraints by
         name and time.
     """
+    sample_library(problem.arm.kind)  # compiled first on a fresh machine: not counted below
     deadline = search_deadline()
     solve = Recorded(partial(solve_for_signs, deadline=deadline))
     try:

@@ -59,11 +59,15 @@ class Budget:
         self.seconds = self.limit = float(seconds)
         self.start = time.monotonic()
         self.fired = False
+        self.uncounted = 0.0  # seconds of finished uncounted blocks (see :func:`uncounted`)
+        self.paused_since: float | None = None  # the start of the uncounted block running
 
     @property
     def elapsed(self) -> float:
-        """Seconds since the budget started."""
-        return time.monotonic() - self.start
+        """Seconds counted since the budget started: its uncounted blocks left out."""
+        now = time.monotonic()
+        paused = 0.0 if self.paused_since is None else now - self.paused_since
+        return now - self.start - self.uncounted - paused
 
     def remaining(self) -> float:
         """Seconds left (negative once exceeded)."""
@@ -129,6 +133,32 @@ def grant_grace() -> None:
         budget.seconds = max(budget.seconds, budget.limit + GRACE)
 
 
+@contextmanager
+def uncounted() -> Iterator[None]:
+    """Run a block whose time the active budget does not count (nothing outside
+    :func:`enforced`): a one-time compile of C code that a fresh machine runs and the next
+    solve does not, so that a time limit means the same on both. The timer does not stop the
+    block (Ctrl-C does); the block's duration is added to the budget when it ends, and the
+    reporter's ``on_uncounted`` (:mod:`cpopt.runtime.progress`) hears of its start (None) and
+    of its end (its seconds), so that a parent process extends its own limit as well.
+    """
+    budget = _State.budget
+    if budget is None or budget.paused_since is not None:  # no budget, or nested
+        yield
+        return
+    from . import progress  # the reporter of the block being run, if any
+
+    budget.paused_since = time.monotonic()
+    progress.current().uncounted(None)
+    try:
+        yield
+    finally:
+        seconds = time.monotonic() - budget.paused_since
+        budget.uncounted += seconds
+        budget.paused_since = None
+        progress.current().uncounted(seconds)
+
+
 def _in_cleanup(frame) -> bool:
     """True inside this module or contextlib: a stop raised there would skip the restoring of
     the signal handlers; the next repeat lands elsewhere."""
@@ -141,8 +171,8 @@ def _on_alarm(signum, frame) -> None:
     if _State.interrupted:
         raise KeyboardInterrupt
     budget = _State.budget
-    if budget is not None and budget.remaining() <= 0:
-        budget.fired = True
+    if budget is not None and budget.paused_since is None and budget.remaining() <= 0:
+        budget.fired = True  # (the timer repeats: a block left uncounted is stopped later)
         raise TimeLimitExceeded(budget)
 
 
@@ -226,12 +256,15 @@ def enforced(budget: Budget) -> Iterator[Budget]:
             sys.stderr = stderr
 
 
-GRACE = 1.0
-"""Seconds a Ctrl-C gets to unwind the work before :func:`hard_stop_on_interrupt` exits."""
+INTERRUPT_GRACE = 1.0
+"""Seconds a Ctrl-C gets to unwind the work before :func:`hard_stop_on_interrupt` exits (named
+apart from :data:`GRACE`, which it used to rebind)."""
 
 
 @contextmanager
-def hard_stop_on_interrupt(on_stop, grace: float = GRACE, code: int = 130) -> Iterator[None]:
+def hard_stop_on_interrupt(
+    on_stop, grace: float = INTERRUPT_GRACE, code: int = 130
+) -> Iterator[None]:
     """For a command line: a Ctrl-C that has not ended the work after ``grace`` seconds ends
     the process: ``on_stop()`` is called (say so, remove temporary files), then ``os._exit``.
 
@@ -271,10 +304,14 @@ def hard_stop_on_interrupt(on_stop, grace: float = GRACE, code: int = 130) -> It
 
 
 __all__ = [
+    "GRACE",
+    "INTERRUPT_GRACE",
     "Budget",
     "TimeLimitExceeded",
     "check_time",
     "enforced",
+    "grant_grace",
     "hard_stop_on_interrupt",
     "remaining",
+    "uncounted",
 ]

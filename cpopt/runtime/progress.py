@@ -40,6 +40,8 @@ class Progress:
         self.problem = ""
         self.start = time.monotonic()
         self.listener = None  # called with every stage, shown or not (see cpopt.isolate)
+        self.on_uncounted = None  # called as a block the time limit does not count starts
+        # (with None) and ends (with its seconds): see cpopt.runtime.budget.uncounted
         self._last_iteration = -ITERATION_EVERY
 
     def stage(self, text: str) -> None:
@@ -47,6 +49,12 @@ class Progress:
         if self.listener is not None:
             self.listener(text)
         self.write(text)
+
+    def uncounted(self, seconds: float | None) -> None:
+        """A block the time limit does not count starts (``seconds`` None) or ends after
+        ``seconds`` [s]: passed to ``on_uncounted`` when there is one."""
+        if self.on_uncounted is not None:
+            self.on_uncounted(seconds)
 
     def write(self, text: str) -> None:
         """One line, when enabled."""
