@@ -3,6 +3,13 @@
 import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# One BLAS thread per process: the suite runs two workers on two cores, each starting child
+# processes (the CLI's solver, notebook kernels); OpenBLAS's threads, spinning while they
+# wait, then take the cores from each other (notebook 04 ran 114 s in the suite, 23 s alone).
+# Set before NumPy or CasADi is imported; child processes inherit it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("MKL_NUM_THREADS", "1")
 
 from pathlib import Path
 
