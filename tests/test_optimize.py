@@ -343,15 +343,18 @@ def test_swing_up_holding_steps_once_at_its_switch(optimized):
 
 
 def test_the_greedy_search_lowers_the_transfer_cost():
-    """switch_search: greedy (issue 11's search) with gamma_switches: auto on the T = 1 s
-    transfer: every pattern tried is reported, and the one kept costs at least 1 % less than
-    the best plan with one sign of gamma. Where it places the switch depends on which active
-    margin constraint weighs most on the one-sign plan, a near tie: the B-spline basis from
+    """switch_search: greedy (issue 11's search) on the T = 1 s transfer, one switch allowed:
+    every pattern tried is reported, and the one kept costs at least 1 % less than the best
+    plan with one sign of gamma. Where it places the switch depends on which active margin
+    constraint weighs most on the one-sign plan, a near tie: the B-spline basis from
     scipy.interpolate gave 62753 (switch at 0.616 s), cpopt's own (equal to 1.5e-15) 70242
-    (-/+ tried at 0.948 s, failed; +/- at 0.339 s kept). The seeded search finds 42521."""
+    (-/+ tried at 0.948 s, failed; +/- at 0.339 s kept); now -/+ at 0.616 s, 62753. The
+    seeded search finds 42521. (With gamma_switches: auto the greedy pass goes on to two
+    switches, 70 s here for nothing better, +/-/+ at 549070: so this test allows one.)"""
     problem = load_problem(PROBLEMS / "transfer_switch.yaml")
     data = problem.spec.model_dump()
     data["optimizer"]["switch_search"] = "greedy"
+    data["optimizer"]["gamma_switches"] = 1
     sol = solve(parse_problem(data, problem.source, problem.name))
     assert sol.solver.objective < 0.85 * 82694.28  # the one-sign plan (transfer_min_torque)
     d = sol.solver.details
@@ -362,7 +365,7 @@ def test_the_greedy_search_lowers_the_transfer_cost():
     assert len(d.switch_times) >= 1 and len(set(d.gamma_signs)) == 2
     assert sol.solver.objective < 0.99 * min(c.objective for c in one_sign)
     assert sol.solver.objective == min(c.objective for c in choices if c.status == "solved")
-    assert "auto asked" in d.search
+    assert "(1 asked)" in d.search
     assert sol.metrics.min_abs_gamma >= 2.0
     assert sol.verification.closed_loop.max_cp_error < 1e-6
 
