@@ -36,7 +36,7 @@ from ..runtime.budget import remaining, stopped_by_time
 from ..runtime.solver import SolverStats, run_nlp
 from . import switching
 from .basis import refine_basis
-from .feasible_start import evaluable_start
+from .feasible_start import RESTORED, evaluable_start, restored_run
 from .path_timing import chosen_points
 from .refine import (
     CERTIFICATION,
@@ -379,12 +379,15 @@ def solve_for_signs(
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous, deadline)
         left = _round_limit(limit, iterations, round_ > 1, refine_past_limit)
+        if previous is not None and previous[1].return_status.startswith(RESTORED):
+            left = min(left or RESTORED_REFINE_LIMIT, RESTORED_REFINE_LIMIT)
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, True, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
         if run.status == "time_limit" and round_ > 1:  # the last solved round stands
             nlp, run = previous
             break
+        run = restored_run(nlp, arguments, run, deadline)  # a cut run's nearly feasible iterate
         run, plan, times, terms = _unpacked(problem, nlp, run, arguments, signs, switches)
         if previous is not None and run.status == "solved":
             run = cost_kept(run, previous[1], refinements)
@@ -458,6 +461,11 @@ REFINE_LIMIT = 400
 bundled problems, more than 150 on a random RRR swing-up's seeded pattern, whose first round
 under-sampled its cost by 14 %; a random RPR swing-down's losing sign of gamma ran its 1000
 there and did not solve)."""
+RESTORED_REFINE_LIMIT = 100
+"""Most Ipopt iterations of a refinement round after a restored round
+(:func:`cpopt.flatopt.feasible_start.restored_run`), its nearly feasible iterate restored
+again when cut: from a restored iterate, which is no optimum, a random PPR swing-down's
+refinement rounds crept for 490 iterations to the search's deadline."""
 RESERVE = 0.15
 """The fraction of the time left when the optimizer starts that its searches leave to what
 follows them (sampling and verifying the plan), at least :data:`RESERVE_MIN` and at most

@@ -12,15 +12,23 @@ Gauss-Newton steps of minimum norm: the equality rows are held where they are sa
 the violated inequality rows whose values are numbers (reach, |gamma| >= gamma_min, limits)
 are pushed a little inside their bounds. The lifted samples follow the core through the lifts'
 Jacobian. A start whose objective is a number is returned unchanged.
+
+:func:`restored_run` takes the same steps from the nearly feasible iterate of a run cpopt cut
+(its iteration cap, the search's deadline) that passed no feasible one: a creeping run can end
+so at half the cost of the plans the search has, its rows violated by 1e-5 to 1e-2 (a random
+PPR swing-down with four switches: 42402 at its 500th iteration, the one-sign plan 80723).
+Moved onto its constraints it is a plan like any other: certified, refined and verified.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
+from ..runtime.solver import STALL_FEASIBLE, NlpRun
 from .transcribe import FlatNLP
 
 CURVE_KINDS = ("coefficients", "control_points")
@@ -29,6 +37,18 @@ MAX_STEPS = 20
 """Gauss-Newton steps at most (three mended the random RRR transfer's start)."""
 INSIDE = 0.02
 """How far inside a violated inequality a step aims, relative to max(1, |bound|)."""
+RESTORE_INSIDE = 1e-6
+"""How far inside a violated inequality a restoring step aims, relative to max(1, |bound|):
+just inside, the iterate moved no further than its rows need."""
+RESTORE_STEPS = 8
+"""Gauss-Newton steps at most of a restoration."""
+RESTORE_GROWTH = 1.1
+"""How much a restoration may raise the objective (a factor): a step that fixes a few rows by
+a large move of the curves passes near gamma = 0 or the edge of the reach, where the torques
+grow without bound (a random PPR swing-down's refinement: 42465 to 7.5e20)."""
+RESTORE_TIME = 0.5
+"""Seconds a restoration may take past the search's deadline (a run cut there): each step
+is one dense least-squares solve of the rows against the curves' coefficients."""
 SMALLEST_STEP = 1e-3
 """The step length below which a step that does not lower the violation ends the projection."""
 
@@ -92,17 +112,18 @@ def _violation(nlp: FlatNLP, core: np.ndarray, p: np.ndarray) -> tuple[int, floa
     return int((~finite).sum()), float(total[finite].sum()), g
 
 
-def _targets(nlp: FlatNLP, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _targets(nlp: FlatNLP, g: np.ndarray, inside: float = INSIDE) -> tuple[np.ndarray, np.ndarray]:
     """(rows a step works on, their targets): the equality rows at their value, and the
-    violated inequality rows whose values are numbers a little inside their bounds."""
+    violated inequality rows whose values are numbers ``inside`` (relative) inside their
+    bounds."""
     lbg, ubg = nlp.lbg, nlp.ubg
     finite = np.isfinite(g)
     equal = lbg == ubg
     low = finite & ~equal & (g < lbg)
     high = finite & ~equal & (g > ubg)
     target = np.where(equal, lbg, g)
-    target[low] = lbg[low] + INSIDE * np.maximum(1.0, np.abs(lbg[low]))
-    target[high] = ubg[high] - INSIDE * np.maximum(1.0, np.abs(ubg[high]))
+    target[low] = lbg[low] + inside * np.maximum(1.0, np.abs(lbg[low]))
+    target[high] = ubg[high] - inside * np.maximum(1.0, np.abs(ubg[high]))
     return finite & (equal | low | high), target
 
 
@@ -126,10 +147,11 @@ def _curve_mask(nlp: FlatNLP) -> np.ndarray:
     ).astype(bool)
 
 
-def _step(nlp: FlatNLP, core, p, lo, hi, violation, lift_jacobian):
+def _step(nlp: FlatNLP, core, p, lo, hi, violation, lift_jacobian, inside=INSIDE, ceiling=math.inf):
     """One damped minimum-norm Gauss-Newton step, halved until fewer rows are not numbers or,
-    with as many, the violation falls; None when no step length does."""
-    rows, target = _targets(nlp, violation[2])
+    with as many, the violation falls, and the objective stays at most ``ceiling``; None when
+    no step length does."""
+    rows, target = _targets(nlp, violation[2], inside)
     jac = _core_jacobian(nlp, core, p, lift_jacobian)
     rows &= np.isfinite(jac).all(axis=1)
     free = (lo < hi) & _curve_mask(nlp)
@@ -143,7 +165,87 @@ def _step(nlp: FlatNLP, core, p, lo, hi, violation, lift_jacobian):
         trial[free] += alpha * direction
         trial = np.clip(trial, lo, hi)
         measured = _violation(nlp, trial, p)
-        if measured[:2] < violation[:2]:
+        # evaluable_start's steps (no ceiling) pass through iterates whose objective is NaN
+        within = ceiling == math.inf or _objective(nlp, trial, p) <= ceiling
+        if measured[:2] < violation[:2] and within:
             return trial, measured
         alpha /= 2
     return None
+
+
+def _objective(nlp: FlatNLP, core: np.ndarray, p: np.ndarray) -> float:
+    """The objective at a core, its lifted samples following."""
+    return float(nlp.solver.get_function("nlp_f")(nlp.complete(core, p), p))
+
+
+def largest_violation(nlp: FlatNLP, g: np.ndarray) -> float:
+    """The largest violation of ``lbg <= g <= ubg`` (inf when a row is not a number)."""
+    g = np.asarray(g, float).ravel()
+    if not np.isfinite(g).all():
+        return math.inf
+    return float(np.max(np.maximum(nlp.lbg - g, g - nlp.ubg), initial=0.0))
+
+
+def restored(
+    nlp: FlatNLP, arguments: dict, x: np.ndarray, objective: float, deadline: float
+) -> np.ndarray | None:
+    """``x`` moved onto the NLP's constraints (violations up to
+    :data:`cpopt.runtime.solver.STALL_FEASIBLE`) by the steps of :func:`evaluable_start`
+    aiming :data:`RESTORE_INSIDE` inside, its objective at most :data:`RESTORE_GROWTH` times
+    ``objective``; None when they do not get there.
+
+    Parameters
+    ----------
+    nlp : FlatNLP
+        The built NLP.
+    arguments : dict
+        nlpsol's arguments of the run (``p``, ``lbx``, ``ubx``).
+    x : numpy.ndarray
+        A nearly feasible iterate of the run.
+    objective : float
+        Its objective as the run measured it (the restored one's is not above
+        :data:`RESTORE_GROWTH` times it; at its edge of reach the completed iterate's own
+        objective may not be a number).
+    deadline : float
+        ``time.monotonic()`` past which no further step is taken.
+    """
+    p, n = arguments["p"], nlp.layout.size
+    lo, hi = np.asarray(arguments["lbx"])[:n], np.asarray(arguments["ubx"])[:n]
+    core = np.clip(np.asarray(x, float)[:n], lo, hi)
+    violation, lift_jacobian = _violation(nlp, core, p), nlp.lift.jacobian()
+    ceiling = RESTORE_GROWTH * objective
+    for _ in range(RESTORE_STEPS):
+        if largest_violation(nlp, violation[2]) <= STALL_FEASIBLE or time.monotonic() > deadline:
+            break
+        trial = _step(nlp, core, p, lo, hi, violation, lift_jacobian, RESTORE_INSIDE, ceiling)
+        if trial is None:
+            break
+        core, violation = trial
+    x = nlp.complete(core, p)
+    feasible = largest_violation(nlp, violation[2]) <= STALL_FEASIBLE
+    return x if feasible and _objective(nlp, core, p) <= ceiling else None
+
+
+def restored_run(nlp: FlatNLP, arguments: dict, run: NlpRun, deadline: float) -> NlpRun:
+    """A run cpopt cut (``max_iterations``, ``time_limit``) that passed no feasible iterate,
+    replaced by its nearly feasible iterate with the lowest objective moved onto its
+    constraints (:func:`restored`; status ``solved``, Ipopt's word
+    ``Restored_Iterate_At_<iteration>``); any other run, or one that is not restored, as it
+    is."""
+    nearly = nlp.reporter.nearly if nlp.reporter is not None else None
+    if run.status not in ("max_iterations", "time_limit") or nearly is None or nearly.x is None:
+        return run
+    p = arguments["p"]
+    x = restored(
+        nlp, arguments, nearly.x, nearly.objective, max(deadline, time.monotonic() + RESTORE_TIME)
+    )
+    if x is None:
+        return run
+    objective = float(nlp.solver.get_function("nlp_f")(x, p))
+    word = f"{RESTORED}{nearly.iteration}"
+    return replace(run, x=x, objective=objective, status="solved", return_status=word,
+                   lam_g=-nearly.lam_g, lam_x=nearly.lam_x)  # fmt: skip
+
+
+RESTORED = "Restored_Iterate_At_"
+"""How Ipopt's word of a restored run begins (:func:`restored_run`)."""

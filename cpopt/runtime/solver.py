@@ -248,7 +248,8 @@ class BestFeasible:
     like any other; it is the optimum only up to how far the run had come (Ipopt's word
     ``Best_Feasible_Iterate_At_<iteration>`` says so)."""
 
-    def __init__(self) -> None:
+    def __init__(self, tolerance: float = STALL_FEASIBLE) -> None:
+        self.tolerance = tolerance  # the largest violation of an iterate it keeps
         self.objective, self.iteration = math.inf, 0
         self.x = self.lam_x = self.lam_g = None
 
@@ -257,7 +258,7 @@ class BestFeasible:
         is feasible, lower than the best so far and not the run's start (``iteration`` 1, Ipopt's
         iteration 0: a start Ipopt could not step from, its Hessian not a number, is no plan;
         a random RPR swing-down's closed-form start was kept so and failed verification)."""
-        if iteration <= 1 or infeasibility > STALL_FEASIBLE or not objective < self.objective:
+        if iteration <= 1 or infeasibility > self.tolerance or not objective < self.objective:
             return
         self.objective, self.iteration = objective, iteration
         self.x, self.lam_x, self.lam_g = (np.asarray(arg[i], float).ravel() for i in (0, 3, 4))
@@ -272,6 +273,13 @@ class BestFeasible:
             return_status=f"Best_Feasible_Iterate_At_{self.iteration}", status="solved",
             iterations=total, solve_time_s=elapsed, lam_g=-self.lam_g, lam_x=self.lam_x,
         )  # fmt: skip
+
+
+RESTORABLE = 1e-2
+"""The largest constraint violation of an iterate a cut run keeps to be moved onto its
+constraints when it passed no feasible one (:attr:`IterationReporter.nearly`,
+:func:`cpopt.flatopt.feasible_start.restored_run`): a creeping run's iterates swing between
+violations of 1e-3 and 1e-1 (:data:`STALL_NEARLY`)."""
 
 
 class IterationReporter(ca.Callback):
@@ -292,6 +300,7 @@ class IterationReporter(ca.Callback):
         ca.Callback.__init__(self)
         self.sizes = {"x": nx, "lam_x": nx, "g": ng, "lam_g": ng, "lam_p": np_, "f": 1}
         self.count, self.label, self.stop = 0, "", None
+        self.best = self.nearly = None  # a run's iterates kept (start)
         self.construct("iterations", {})
 
     def get_n_in(self) -> int:
@@ -329,6 +338,7 @@ class IterationReporter(ca.Callback):
         self.count, self.label, self.stop, self.limit = 0, label, None, limit
         self.stall, self.stalled = (Stall() if stall else None), False
         self.best = BestFeasible() if stall else None
+        self.nearly = BestFeasible(RESTORABLE) if stall else None  # restored if nothing better
         self.capped, self.abandon, self.abandoned = False, abandon, False
         self.deadline, self.late = deadline, False
         self.bounds = (
@@ -358,6 +368,7 @@ class IterationReporter(ca.Callback):
             self.abandoned = bool(self.abandon(self.count, float(arg[1]), infeasibility))
         if self.stall is not None:
             self.best.offer(self.count, float(arg[1]), infeasibility, arg)
+            self.nearly.offer(self.count, float(arg[1]), infeasibility, arg)
             # a stall returns a feasible iterate: this one, or the best kept (none when the
             # only feasible one was the start, which BestFeasible does not keep)
             returnable = infeasibility <= STALL_FEASIBLE or self.best.x is not None
@@ -433,6 +444,7 @@ def run_nlp(
 
 __all__ = [
     "IPOPT_STATUS",
+    "RESTORABLE",
     "STALL_CHANGE",
     "STALL_FEASIBLE",
     "STALL_NEARLY",
