@@ -137,7 +137,9 @@ def test_the_switch_search_returns_its_best_plan_by_the_time_limit(tmp_path):
     bound (0.5 s, 3424.8) is solved, the seed's pattern stops at the search's deadline (the
     limit less a reserve for verification) before any iterate feasible to 1e-5, and its
     nearly feasible iterate, restored onto the rows, is returned, solved and verified (1801.7
-    measured at 3 s, 1818.0 at 2.5 s, 1763.8 at 3.5 s; the full search's optimum is 1749.6)."""
+    measured at 3 s, 1818.0 at 2.5 s, 1763.8 at 3.5 s; the full search's optimum is 1749.6).
+    On a loaded machine (the suite's two workers) the seed's pattern may reach no iterate
+    within 1e-2 of its rows by then: the one-sign plan is returned."""
     problem = PROBLEMS / "swing_up_switches.yaml"
     command = [sys.executable, "-m", "cpopt", "solve", str(problem), "--time-limit", "3"]
     run = subprocess.run(
@@ -151,12 +153,17 @@ def test_the_switch_search_returns_its_best_plan_by_the_time_limit(tmp_path):
     doc = json.loads((tmp_path / "swing_up_switches" / "solution.json").read_text())
     assert doc["status"] == "solved" and "Traceback" not in run.stderr
     search = doc["solver"]["search"]
-    assert search["method"] == "seed" and "search deadline reached" in search["summary"]
+    assert "search deadline reached" in search["summary"]
     choices = {tuple(c["signs"]): c for c in doc["solver"]["sign_choices"]}
     assert choices[("negative", "negative")]["objective"] == pytest.approx(3424.8, rel=1e-3)
-    kept = choices[("negative", "negative", "positive", "negative")]
-    assert kept["ipopt_status"].startswith("Restored_Iterate_At_")
-    assert 1749.5 < doc["solver"]["objective"] == kept["objective"] < 1.06 * 1749.6
+    seeded = choices[("negative", "negative", "positive", "negative")]
+    if search["method"] == "one_sign":  # a loaded machine: no iterate within 1e-2 by then
+        assert seeded["ipopt_status"].startswith("Search_Deadline_At_")
+        assert doc["solver"]["objective"] == pytest.approx(3424.8, rel=1e-3)
+        return
+    assert search["method"] == "seed"
+    assert seeded["ipopt_status"].startswith("Restored_Iterate_At_")
+    assert 1749.5 < doc["solver"]["objective"] == seeded["objective"] < 1.06 * 1749.6
 
 
 def test_a_stage_that_overruns_the_searchs_deadline_keeps_the_solved_plan(monkeypatch):

@@ -62,6 +62,35 @@ RRR_TRANSFER_VIA = {
 }
 
 
+# benchmarks/zoo.py --seed 2, draw 12: a swing-down through a via state whose closed form
+# leaves the reach by 2.6 m (gamma positive) and 0.52 m (negative)
+RRR_SWING_DOWN_VIA = {
+    **RRR_TRANSFER_VIA,
+    "name": "rrr_swing_down_via",
+    "arm": {
+        "kind": "RRR",
+        "base": [0.0, 0.0],
+        "links": [
+            {"length": 1.671, "mass": 9.586},
+            {"length": 0.804, "mass": 1.345},
+            {"length": 0.746, "mass": 1.276},
+        ],
+        "branch": "elbow_up",
+    },
+    "motion": {
+        "duration": 0.911,
+        "start": {"x": -0.56, "y": 1.9951, "theta_deg": 90, "xi": 0, "eta": 0},
+        "goal": {"x": 0.7838, "y": 1.2208, "theta_deg": -90, "xi": 0, "eta": 0},
+        "via": [{"t": 0.417, "x": 1.5825, "y": 0.3246, "theta_deg": 0, "xi": 0, "eta": 0}],
+    },
+    "optimizer": {
+        **RRR_TRANSFER_VIA["optimizer"],
+        "gamma_min": 1.3,
+        "smooth_torque": True,
+    },
+}
+
+
 @pytest.fixture(scope="module")
 def rrr_transfer_via(tmp_path_factory):
     path = tmp_path_factory.mktemp("feasible") / "rrr_transfer_via.yaml"
@@ -125,3 +154,20 @@ def test_a_refinement_that_doubles_the_cost_is_not_a_solved_plan():
     assert grown.return_status == "Cost_Grew_2.5x_In_Refinement_1"
     assert cost_kept(_run(1.9e5), _run(1.0e5), 1).status == "solved"
     assert cost_kept(_run(0.4e5), _run(1.0e5), 2).status == "solved"
+
+
+def test_damped_steps_mend_a_start_the_gauss_newton_steps_do_not(tmp_path):
+    """The swing-down's negative-gamma closed form: every halved Gauss-Newton step raised the
+    summed violation (7.5), so the start was kept and Ipopt stopped at iteration 0
+    (Invalid_Number_Detected); the damped steps reach every row in 5 steps (measured)."""
+    path = tmp_path / "rrr_swing_down_via.yaml"
+    path.write_text(yaml.safe_dump(RRR_SWING_DOWN_VIA))
+    nlp, arguments = _arguments(load_problem(path), (-1, -1))
+    p = arguments["p"]
+    assert not objective_is_number(nlp, arguments["x0"], p)
+    assert evaluable_start(nlp, arguments) == (pytest.approx(arguments["x0"]), 0)  # undamped
+    x, steps = evaluable_start(nlp, arguments, damped=True)
+    assert 1 <= steps <= 8
+    assert objective_is_number(nlp, x, p)
+    g = np.asarray(nlp.constraints(x, p)).ravel()
+    assert np.all(g >= nlp.lbg - 1e-8) and np.all(g <= nlp.ubg + 1e-8)

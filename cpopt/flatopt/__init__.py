@@ -298,7 +298,8 @@ def _round_arguments(
     arguments = {"p": p, "lbx": lbx, "ubx": ubx, "lbg": nlp.lbg, "ubg": nlp.ubg}
     if previous is None:
         arguments["x0"] = _start(nlp, problem, signs, seed)
-        arguments["x0"], _ = evaluable_start(nlp, arguments, deadline)
+        damped = seed is not None and len(set(signs)) > 1  # a pattern of the switch search
+        arguments["x0"], _ = evaluable_start(nlp, arguments, deadline, damped)
     else:
         arguments["x0"] = nlp.complete(previous[1].x, p)
         arguments.update(resumed_multipliers(previous, nlp))
