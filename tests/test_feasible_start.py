@@ -8,87 +8,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from flat_arguments import closed_form_nlp
+from zoo_draws import RRR_SWING_DOWN_VIA, RRR_TRANSFER_VIA
 
 from cpopt.flatopt import solve_for_signs
 from cpopt.flatopt.feasible_start import MAX_STEPS, evaluable_start, objective_is_number
 from cpopt.flatopt.refine import cost_kept
-from cpopt.flatopt.transcribe import REACH_EPS, build, initial_grids
-from cpopt.flatopt.warm_start import initial_guess
+from cpopt.flatopt.transcribe import REACH_EPS
 from cpopt.problem import load_problem
 from cpopt.runtime.solver import NlpRun
 
 ROOT = Path(__file__).resolve().parent.parent
-
-# benchmarks/zoo.py --seed 1, draw 25 (refine_basis off as the zoo draws it)
-FREE_XI, FREE_ETA = [-40.0, 40.0], [-200.0, 200.0]
-RRR_TRANSFER_VIA = {
-    "name": "rrr_transfer_via",
-    "arm": {
-        "kind": "RRR",
-        "base": [0.0, 0.0],
-        "links": [
-            {"length": 0.725, "mass": 4.24},
-            {"length": 0.765, "mass": 3.558},
-            {"length": 0.859, "mass": 0.437},
-        ],
-        "branch": "elbow_up",
-    },
-    "motion": {
-        "duration": 2.356,
-        "start": {"x": 0.6694, "y": 0.4765, "theta_deg": 90, "xi": 0, "eta": 0},
-        "goal": {"x": 0.0151, "y": 1.1836, "theta_deg": 90, "xi": 0, "eta": 0},
-        "via": [{"t": 1.36, "x": 0.4842, "y": 0.0299, "theta_deg": 79, "xi": 0, "eta": 0}],
-    },
-    "planner": "optimize",
-    "optimizer": {
-        "curve": "bspline",
-        "degree": 8,
-        "coefficients": 14,
-        "objective": "torque",
-        "gamma_min": 1.72,
-        "gamma_switches": 0,
-        "samples": 50,
-        "refine_basis": False,
-        "free": {
-            "start.xi": FREE_XI,
-            "start.eta": FREE_ETA,
-            "goal.xi": FREE_XI,
-            "goal.eta": FREE_ETA,
-            "via[0].xi": FREE_XI,
-            "via[0].eta": FREE_ETA,
-            "via[0].eta_after": FREE_ETA,
-        },
-    },
-}
-
-
-# benchmarks/zoo.py --seed 2, draw 12: a swing-down through a via state whose closed form
-# leaves the reach by 2.6 m (gamma positive) and 0.52 m (negative)
-RRR_SWING_DOWN_VIA = {
-    **RRR_TRANSFER_VIA,
-    "name": "rrr_swing_down_via",
-    "arm": {
-        "kind": "RRR",
-        "base": [0.0, 0.0],
-        "links": [
-            {"length": 1.671, "mass": 9.586},
-            {"length": 0.804, "mass": 1.345},
-            {"length": 0.746, "mass": 1.276},
-        ],
-        "branch": "elbow_up",
-    },
-    "motion": {
-        "duration": 0.911,
-        "start": {"x": -0.56, "y": 1.9951, "theta_deg": 90, "xi": 0, "eta": 0},
-        "goal": {"x": 0.7838, "y": 1.2208, "theta_deg": -90, "xi": 0, "eta": 0},
-        "via": [{"t": 0.417, "x": 1.5825, "y": 0.3246, "theta_deg": 0, "xi": 0, "eta": 0}],
-    },
-    "optimizer": {
-        **RRR_TRANSFER_VIA["optimizer"],
-        "gamma_min": 1.3,
-        "smooth_torque": True,
-    },
-}
 
 
 @pytest.fixture(scope="module")
@@ -98,18 +28,11 @@ def rrr_transfer_via(tmp_path_factory):
     return load_problem(path)
 
 
-def _arguments(problem, signs):
-    nlp = build(problem, signs, initial_grids(problem), False, False, None, False)
-    lbx, ubx = nlp.layout.bounds(problem.free)
-    x0 = initial_guess(nlp, problem, signs)
-    return nlp, {"x0": x0, "p": nlp.parameters(problem.values), "lbx": lbx, "ubx": ubx}
-
-
 def test_a_start_out_of_reach_is_moved_into_it_with_its_equalities_held(rrr_transfer_via):
     """The closed form's second phase has the elbow's cosine past 1 (reach margin down to
     -0.99): three steps put every reach row at or above its bound, and the node and lift rows
     stay satisfied to 1e-8."""
-    nlp, arguments = _arguments(rrr_transfer_via, (1, 1))
+    nlp, arguments = closed_form_nlp(rrr_transfer_via, (1, 1))
     p = arguments["p"]
     assert not objective_is_number(nlp, arguments["x0"], p)
     x, steps = evaluable_start(nlp, arguments)
@@ -126,7 +49,7 @@ def test_a_start_out_of_reach_is_moved_into_it_with_its_equalities_held(rrr_tran
 def test_an_evaluable_start_is_left_alone():
     problem = load_problem(ROOT / "problems" / "transfer_min_torque.yaml")
     signs = (1,) * (len(problem.nodes) - 1)
-    nlp, arguments = _arguments(problem, signs)
+    nlp, arguments = closed_form_nlp(problem, signs)
     assert objective_is_number(nlp, arguments["x0"], arguments["p"])
     x, steps = evaluable_start(nlp, arguments)
     assert steps == 0
@@ -162,7 +85,7 @@ def test_damped_steps_mend_a_start_the_gauss_newton_steps_do_not(tmp_path):
     (Invalid_Number_Detected); the damped steps reach every row in 5 steps (measured)."""
     path = tmp_path / "rrr_swing_down_via.yaml"
     path.write_text(yaml.safe_dump(RRR_SWING_DOWN_VIA))
-    nlp, arguments = _arguments(load_problem(path), (-1, -1))
+    nlp, arguments = closed_form_nlp(load_problem(path), (-1, -1))
     p = arguments["p"]
     assert not objective_is_number(nlp, arguments["x0"], p)
     assert evaluable_start(nlp, arguments) == (pytest.approx(arguments["x0"]), 0)  # undamped

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from flat_arguments import closed_form_nlp
+from zoo_draws import PPR_SWING_DOWN_VIA
 
 import cpopt
 from cpopt.flatopt import RESTORED_REFINE_LIMIT
@@ -21,74 +23,17 @@ from cpopt.flatopt.feasible_start import (
     restored,
     restored_run,
 )
-from cpopt.flatopt.transcribe import build, initial_grids
-from cpopt.flatopt.warm_start import initial_guess
 from cpopt.problem import load_problem
 from cpopt.runtime.solver import RESTORABLE, STALL_FEASIBLE, run_nlp
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-# benchmarks/zoo.py --seed 7, draw 1: a PPR swing-down through a via state, whose seeded
-# four-switch run creeps (0.05 % an iteration) and never passes an iterate feasible to 1e-5
-FREE_XI, FREE_ETA = [-40.0, 40.0], [-200.0, 200.0]
-PPR_SWING_DOWN_VIA = {
-    "name": "ppr_swing_down_via",
-    "arm": {
-        "kind": "PPR",
-        "base": [0.0, 0.0],
-        "links": [
-            {"length": 1.347, "mass": 9.895},
-            {"length": 0.858, "mass": 1.381},
-            {"length": 0.89, "mass": 0.279},
-        ],
-    },
-    "motion": {
-        "duration": 1.645,
-        "start": {"x": -0.4465, "y": 0.2723, "theta_deg": 90, "xi": 0, "eta": 0},
-        "goal": {"x": 0.1993, "y": 0.8758, "theta_deg": -90, "xi": 0, "eta": 0},
-        "via": [{"t": 0.582, "x": 0.4438, "y": 0.2712, "theta_deg": 0, "xi": 0, "eta": 0}],
-    },
-    "planner": "optimize",
-    "optimizer": {
-        "curve": "bspline",
-        "degree": 8,
-        "coefficients": 14,
-        "objective": "torque",
-        "gamma_min": 2.38,
-        "gamma_switches": "auto",
-        "smooth_torque": True,
-        "samples": 50,
-        "free": {
-            "start.xi": FREE_XI,
-            "start.eta": FREE_ETA,
-            "goal.xi": FREE_XI,
-            "goal.eta": FREE_ETA,
-            "via[0].xi": FREE_XI,
-            "via[0].eta": FREE_ETA,
-            "via[0].eta_after": FREE_ETA,
-        },
-    },
-}
-
-
 @pytest.fixture(scope="module")
 def swing_up():
     """(nlp, nlpsol's arguments) of the bundled swing-up's one-sign NLP from its closed form."""
     problem = load_problem(ROOT / "problems" / "swing_up_min_torque.yaml")
-    signs = (1,) * (len(problem.nodes) - 1)
-    nlp = build(problem, signs, initial_grids(problem), False, False, None, False)
-    lo, hi = nlp.layout.bounds(problem.free)
-    lifted = nlp.solver.size_in(0)[0] - nlp.layout.size
-    arguments = {
-        "x0": initial_guess(nlp, problem, signs),
-        "p": nlp.parameters(problem.values),
-        "lbx": np.r_[lo, [-np.inf] * lifted],
-        "ubx": np.r_[hi, [np.inf] * lifted],
-        "lbg": nlp.lbg,
-        "ubg": nlp.ubg,
-    }
-    return nlp, arguments
+    return closed_form_nlp(problem, (1,) * (len(problem.nodes) - 1))
 
 
 def _capped(nlp, arguments, cap: int):
@@ -147,10 +92,12 @@ def test_a_plan_moved_past_its_reach_is_stepped_back_into_it(swing_up):
     x, p = _moved_plan(nlp, arguments), arguments["p"]
     moved = np.asarray(nlp.constraints(nlp.complete(x, p), p)).ravel()
     assert largest_violation(nlp, moved) == pytest.approx(6.8e-4, rel=0.02)
-    back = restored(nlp, arguments, x, np.inf, np.inf)
-    assert back is not None
+    moved_back = restored(nlp, arguments, x, np.inf, np.inf)
+    assert moved_back is not None
+    back, objective = moved_back
     assert largest_violation(nlp, np.asarray(nlp.constraints(back, p)).ravel()) <= STALL_FEASIBLE
     assert float(nlp.solver.get_function("nlp_f")(back, p)) == pytest.approx(4.0e9, rel=0.05)
+    assert objective == float(nlp.solver.get_function("nlp_f")(back, p))
 
 
 def test_a_restoration_may_not_raise_the_objective_past_its_guard(swing_up):

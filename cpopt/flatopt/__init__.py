@@ -306,14 +306,16 @@ def _round_arguments(
     return arguments
 
 
-def _round_limit(limit, iterations: int, refinement: bool, refine_past_limit: bool):
+def _round_limit(limit, iterations: int, previous, refine_past_limit: bool):
     """The iteration cap of a round (None for Ipopt's own): what is left of ``limit``; a
-    refinement round, resumed from a solved one, at most :data:`REFINE_LIMIT` (a long run
-    there means the grid is not enough), and only that with ``refine_past_limit``."""
+    refinement round, resumed from a solved one (``previous``: its NLP and run), at most
+    :data:`REFINE_LIMIT` (a long run there means the grid is not enough), and only that with
+    ``refine_past_limit``; at most :data:`RESTORED_REFINE_LIMIT` after a restored round."""
     left = None if limit is None else max(limit - iterations, 1)
-    if not refinement:
+    if previous is None:
         return left
-    return REFINE_LIMIT if refine_past_limit else min(left or REFINE_LIMIT, REFINE_LIMIT)
+    most = RESTORED_REFINE_LIMIT if previous[1].return_status.startswith(RESTORED) else REFINE_LIMIT
+    return most if refine_past_limit else min(left or most, most)
 
 
 def _unpacked(problem: Problem, nlp: FlatNLP, run, arguments: dict, signs, switches):
@@ -379,9 +381,7 @@ def solve_for_signs(
         nlp = build(problem, signs, grids, seed is not None, previous is not None, None, exact)
         build_time += time.perf_counter() - tic  # ~0 when the solver was cached
         arguments = _round_arguments(nlp, problem, signs, seed, previous, deadline)
-        left = _round_limit(limit, iterations, round_ > 1, refine_past_limit)
-        if previous is not None and previous[1].return_status.startswith(RESTORED):
-            left = min(left or RESTORED_REFINE_LIMIT, RESTORED_REFINE_LIMIT)
+        left = _round_limit(limit, iterations, previous, refine_past_limit)
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, True, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations

@@ -28,7 +28,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..runtime.solver import STALL_FEASIBLE, NlpRun
+from ..runtime.solver import STALL_FEASIBLE, NlpRun, bound_violation
 from .transcribe import FlatNLP
 
 CURVE_KINDS = ("coefficients", "control_points")
@@ -46,6 +46,8 @@ RESTORE_GROWTH = 1.1
 """How much a restoration may raise the objective (a factor): a step that fixes a few rows by
 a large move of the curves passes near gamma = 0 or the edge of the reach, where the torques
 grow without bound (a random PPR swing-down's refinement: 42465 to 7.5e20)."""
+RESTORED = "Restored_Iterate_At_"
+"""How Ipopt's word of a restored run begins (:func:`restored_run`)."""
 RESTORE_TIME = 0.5
 """Seconds a restoration may take past the search's deadline (a run cut there): each step
 is one dense least-squares solve of the rows against the curves' coefficients."""
@@ -94,22 +96,32 @@ def evaluable_start(
     x0, p = np.asarray(arguments["x0"], float), arguments["p"]
     if objective_is_number(nlp, x0, p):
         return x0, 0
-    n = nlp.layout.size
+
+    def evaluable(core: np.ndarray, violation: tuple) -> bool:
+        return violation[0] == 0 and objective_is_number(nlp, nlp.complete(core, p), p)
+
+    core, _, steps = _walk(nlp, arguments, x0, MAX_STEPS, deadline, evaluable, damped=damped)
+    x = nlp.complete(core, p)
+    return (x, steps) if objective_is_number(nlp, x, p) else (x0, 0)
+
+
+def _walk(nlp: FlatNLP, arguments: dict, x, most: int, deadline: float, reached, **options):
+    """(core, violation, steps): the core of ``x`` clipped into its bounds, then moved by
+    :func:`_step` (``options``: its ``inside``, ``ceiling``, ``damped``) until
+    ``reached(core, violation)``, after ``most`` steps, at ``deadline`` (``time.monotonic()``)
+    or when no step lowers the violation."""
+    p, n = arguments["p"], nlp.layout.size
     lo, hi = np.asarray(arguments["lbx"])[:n], np.asarray(arguments["ubx"])[:n]
-    core = np.clip(x0[:n], lo, hi)
-    violation = _violation(nlp, core, p)
-    steps, lift_jacobian = 0, nlp.lift.jacobian()
-    while steps < MAX_STEPS and time.monotonic() < deadline:
-        x = nlp.complete(core, p)
-        if violation[0] == 0 and objective_is_number(nlp, x, p):
-            break
-        trial = _step(nlp, core, p, lo, hi, violation, lift_jacobian, damped=damped)
+    core = np.clip(np.asarray(x, float)[:n], lo, hi)
+    violation, lift_jacobian = _violation(nlp, core, p), nlp.lift.jacobian()
+    steps = 0
+    while steps < most and time.monotonic() < deadline and not reached(core, violation):
+        trial = _step(nlp, core, p, lo, hi, violation, lift_jacobian, **options)
         if trial is None:
             break
         core, violation = trial
         steps += 1
-    x = nlp.complete(core, p)
-    return (x, steps) if objective_is_number(nlp, x, p) else (x0, 0)
+    return core, violation, steps
 
 
 def _violation(nlp: FlatNLP, core: np.ndarray, p: np.ndarray) -> tuple[int, float, np.ndarray]:
@@ -214,16 +226,13 @@ def _objective(nlp: FlatNLP, core: np.ndarray, p: np.ndarray) -> float:
 
 def largest_violation(nlp: FlatNLP, g: np.ndarray) -> float:
     """The largest violation of ``lbg <= g <= ubg`` (inf when a row is not a number)."""
-    g = np.asarray(g, float).ravel()
-    if not np.isfinite(g).all():
-        return math.inf
-    return float(np.max(np.maximum(nlp.lbg - g, g - nlp.ubg), initial=0.0))
+    return bound_violation(g, nlp.lbg, nlp.ubg)
 
 
 def restored(
     nlp: FlatNLP, arguments: dict, x: np.ndarray, objective: float, deadline: float
-) -> np.ndarray | None:
-    """``x`` moved onto the NLP's constraints (violations up to
+) -> tuple[np.ndarray, float] | None:
+    """(x, its objective): ``x`` moved onto the NLP's constraints (violations up to
     :data:`cpopt.runtime.solver.STALL_FEASIBLE`) by the steps of :func:`evaluable_start`
     aiming :data:`RESTORE_INSIDE` inside, its objective at most :data:`RESTORE_GROWTH` times
     ``objective``; None when they do not get there.
@@ -243,21 +252,17 @@ def restored(
     deadline : float
         ``time.monotonic()`` past which no further step is taken.
     """
-    p, n = arguments["p"], nlp.layout.size
-    lo, hi = np.asarray(arguments["lbx"])[:n], np.asarray(arguments["ubx"])[:n]
-    core = np.clip(np.asarray(x, float)[:n], lo, hi)
-    violation, lift_jacobian = _violation(nlp, core, p), nlp.lift.jacobian()
     ceiling = RESTORE_GROWTH * objective
-    for _ in range(RESTORE_STEPS):
-        if largest_violation(nlp, violation[2]) <= STALL_FEASIBLE or time.monotonic() > deadline:
-            break
-        trial = _step(nlp, core, p, lo, hi, violation, lift_jacobian, RESTORE_INSIDE, ceiling)
-        if trial is None:
-            break
-        core, violation = trial
-    x = nlp.complete(core, p)
-    feasible = largest_violation(nlp, violation[2]) <= STALL_FEASIBLE
-    return x if feasible and _objective(nlp, core, p) <= ceiling else None
+
+    def feasible(core: np.ndarray, violation: tuple) -> bool:
+        return largest_violation(nlp, violation[2]) <= STALL_FEASIBLE
+
+    options = {"inside": RESTORE_INSIDE, "ceiling": ceiling}
+    core, violation, _ = _walk(nlp, arguments, x, RESTORE_STEPS, deadline, feasible, **options)
+    restored_objective = _objective(nlp, core, arguments["p"])
+    if not feasible(core, violation) or not restored_objective <= ceiling:
+        return None
+    return nlp.complete(core, arguments["p"]), restored_objective
 
 
 def restored_run(nlp: FlatNLP, arguments: dict, run: NlpRun, deadline: float) -> NlpRun:
@@ -269,17 +274,11 @@ def restored_run(nlp: FlatNLP, arguments: dict, run: NlpRun, deadline: float) ->
     nearly = nlp.reporter.nearly if nlp.reporter is not None else None
     if run.status not in ("max_iterations", "time_limit") or nearly is None or nearly.x is None:
         return run
-    p = arguments["p"]
-    x = restored(
-        nlp, arguments, nearly.x, nearly.objective, max(deadline, time.monotonic() + RESTORE_TIME)
-    )
-    if x is None:
+    late = max(deadline, time.monotonic() + RESTORE_TIME)
+    moved = restored(nlp, arguments, nearly.x, nearly.objective, late)
+    if moved is None:
         return run
-    objective = float(nlp.solver.get_function("nlp_f")(x, p))
+    x, objective = moved
     word = f"{RESTORED}{nearly.iteration}"
     return replace(run, x=x, objective=objective, status="solved", return_status=word,
                    lam_g=-nearly.lam_g, lam_x=nearly.lam_x)  # fmt: skip
-
-
-RESTORED = "Restored_Iterate_At_"
-"""How Ipopt's word of a restored run begins (:func:`restored_run`)."""

@@ -275,6 +275,15 @@ class BestFeasible:
         )  # fmt: skip
 
 
+def bound_violation(g, lower: np.ndarray, upper: np.ndarray) -> float:
+    """The largest violation of ``lower <= g <= upper`` (0 when there are no rows, inf when a
+    row is not a number)."""
+    g = np.asarray(g, float).ravel()
+    if not np.isfinite(g).all():
+        return math.inf
+    return float(np.max(np.maximum(lower - g, g - upper), initial=0.0))
+
+
 RESTORABLE = 1e-2
 """The largest constraint violation of an iterate a cut run keeps to be moved onto its
 constraints when it passed no feasible one (:attr:`IterationReporter.nearly`,
@@ -349,11 +358,9 @@ class IterationReporter(ca.Callback):
 
     def infeasibility(self, g) -> float:
         """The largest violation of the run's constraint bounds by ``g`` (0 without bounds)."""
-        if self.bounds is None or self.bounds[0].size == 0:
+        if self.bounds is None:
             return 0.0
-        g = np.asarray(g, float).ravel()
-        lower, upper = self.bounds
-        return float(np.max(np.maximum(lower - g, g - upper), initial=0.0))
+        return bound_violation(g, *self.bounds)
 
     def eval(self, arg) -> list:
         self.count += 1
@@ -455,6 +462,7 @@ __all__ = [
     "PlannerDetails",
     "SolverStats",
     "Stall",
+    "bound_violation",
     "fatrop_options",
     "ipopt_options",
     "read_stats",

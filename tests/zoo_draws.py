@@ -1,0 +1,84 @@
+"""Draws of ``benchmarks/zoo.py`` pinned for the tests: the problem files the zoo writes with
+``--save``, rebuilt from what differs between draws (the arm, the motion, gamma_min and the
+switch setting); the rest is what every draw has (a degree-8 B-spline of 14 coefficients a
+phase, minimum torque, 50 samples, the compensator values freed as the bundled files free
+them)."""
+
+FREE_XI, FREE_ETA = [-40.0, 40.0], [-200.0, 200.0]
+"""The bounds of every freed xi [m/s^2] and eta [m/s^3], as the zoo frees them."""
+
+
+def zoo_problem(name: str, arm: dict, motion: dict, **optimizer) -> dict:
+    """A problem as the zoo draws it; ``optimizer`` adds to or overrides its optimizer block."""
+    free = {"start.xi": FREE_XI, "start.eta": FREE_ETA, "goal.xi": FREE_XI, "goal.eta": FREE_ETA}
+    if motion.get("via"):
+        free.update({"via[0].xi": FREE_XI, "via[0].eta": FREE_ETA, "via[0].eta_after": FREE_ETA})
+    base = {"curve": "bspline", "degree": 8, "coefficients": 14, "objective": "torque"}
+    return {
+        "name": name,
+        "arm": arm,
+        "motion": motion,
+        "planner": "optimize",
+        "optimizer": {**base, **optimizer, "samples": 50, "free": free},
+    }
+
+
+def arm(kind: str, *links: tuple[float, float], **branch) -> dict:
+    """An arm at the origin: its kind, each link's (length [m], mass [kg]), and ``branch``."""
+    lengths_masses = [{"length": length, "mass": mass} for length, mass in links]
+    return {"kind": kind, "base": [0.0, 0.0], "links": lengths_masses, **branch}
+
+
+def at_rest(x: float, y: float, theta_deg: float, **when) -> dict:
+    """A node state at rest (xi = eta = 0) with the CP at (x, y) [m] and the link at theta."""
+    return {**when, "x": x, "y": y, "theta_deg": theta_deg, "xi": 0, "eta": 0}
+
+
+# benchmarks/zoo.py --seed 1, draw 25 (refine_basis off as the zoo draws it): its closed form's
+# second phase leaves the arm's reach
+RRR_TRANSFER_VIA = zoo_problem(
+    "rrr_transfer_via",
+    arm("RRR", (0.725, 4.24), (0.765, 3.558), (0.859, 0.437), branch="elbow_up"),
+    {
+        "duration": 2.356,
+        "start": at_rest(0.6694, 0.4765, 90),
+        "goal": at_rest(0.0151, 1.1836, 90),
+        "via": [at_rest(0.4842, 0.0299, 79, t=1.36)],
+    },
+    gamma_min=1.72,
+    gamma_switches=0,
+    refine_basis=False,
+)
+
+# benchmarks/zoo.py --seed 2, draw 12: a swing-down through a via state whose closed form
+# leaves the reach by 2.6 m (gamma positive) and 0.52 m (negative)
+RRR_SWING_DOWN_VIA = zoo_problem(
+    "rrr_swing_down_via",
+    arm("RRR", (1.671, 9.586), (0.804, 1.345), (0.746, 1.276), branch="elbow_up"),
+    {
+        "duration": 0.911,
+        "start": at_rest(-0.56, 1.9951, 90),
+        "goal": at_rest(0.7838, 1.2208, -90),
+        "via": [at_rest(1.5825, 0.3246, 0, t=0.417)],
+    },
+    gamma_min=1.3,
+    gamma_switches=0,
+    refine_basis=False,
+    smooth_torque=True,
+)
+
+# benchmarks/zoo.py --seed 7, draw 1: a PPR swing-down through a via state, whose seeded
+# four-switch run creeps (0.05 % an iteration) and never passes an iterate feasible to 1e-5
+PPR_SWING_DOWN_VIA = zoo_problem(
+    "ppr_swing_down_via",
+    arm("PPR", (1.347, 9.895), (0.858, 1.381), (0.89, 0.279)),
+    {
+        "duration": 1.645,
+        "start": at_rest(-0.4465, 0.2723, 90),
+        "goal": at_rest(0.1993, 0.8758, -90),
+        "via": [at_rest(0.4438, 0.2712, 0, t=0.582)],
+    },
+    gamma_min=2.38,
+    gamma_switches="auto",
+    smooth_torque=True,
+)
