@@ -5,9 +5,11 @@ re-plans from the newest plan's state perturbed by normal noise (``--dq`` [rad o
 ``--dqd`` [rad/s or m/s]), as :mod:`cpopt.tracking.mpc` does in its loop: the compensator
 held, warm started from the newest plan, its samples and the newest solved re-plan's
 multipliers. ``--rounds`` repeats the sweep with new noise; ``--method`` picks the re-plan's solver
-(``ipopt``, the default, or ``sqp``). It prints per plan::
+(``ipopt``, the default, or ``sqp``) and ``--deadline`` its wall-time limit [s] (none by
+default). It prints per plan (usable: solved, or the SQP's ``feasible`` iterate at its
+deadline)::
 
-    LOOP <plan> replans=<n> solved=<%> median_ms=<ms> p99_ms=<ms> cpu_median_ms=<ms>
+    LOOP <plan> replans=<n> solved=<%> usable=<%> median_ms=<ms> p99_ms=<ms> cpu_median_ms=<ms>
          cpu_p99_ms=<ms> iterations=<median> statuses=<status:count,...>
 
 (wall times, and this process's CPU times, which other processes on the machine do not
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import math
 import sys
 import time
 from collections import Counter
@@ -37,7 +40,13 @@ from cpopt.problem import bundled_problems
 
 
 def sweep(
-    solution, period: float, dq: float, dqd: float, rng, method: str = "ipopt"
+    solution,
+    period: float,
+    dq: float,
+    dqd: float,
+    rng,
+    method: str = "ipopt",
+    deadline: float = math.inf,
 ) -> list[tuple[Replan, float]]:
     """One sweep of re-plans every ``period`` [s] from the newest plan's perturbed states:
     each re-plan and the CPU time of this process it took [s] (unlike its wall time, not
@@ -50,12 +59,12 @@ def sweep(
         q = now.q[0] + rng.normal(0.0, dq, 3)
         qd = now.qd[0] + rng.normal(0.0, dqd, 3)
         tic = time.process_time()
-        r = replan(problem, newest, float(t), q, qd, seed=samples, warm=warm,
+        r = replan(problem, newest, float(t), q, qd, deadline, seed=samples, warm=warm,
                    free_compensator=False, method=method)  # fmt: skip
         if r.status == "holding":
             break
         out.append((r, time.process_time() - tic))
-        if r.solved:
+        if r.usable:
             newest, samples, warm = r.plan, r.samples, r.multipliers
     return out
 
@@ -66,10 +75,12 @@ def summary(name: str, timed: list[tuple[Replan, float]]) -> str:
     ms = 1e3 * np.array([r.time_s for r in replans])
     cpu = 1e3 * np.array([c for _, c in timed])
     solved = np.mean([r.solved for r in replans])
+    usable = np.mean([r.usable for r in replans])
     iterations = np.median([r.iterations for r in replans])
     statuses = ",".join(f"{k}:{v}" for k, v in Counter(r.status for r in replans).items())
     return (
         f"LOOP {name} replans={len(replans)} solved={100 * solved:.1f}% "
+        f"usable={100 * usable:.1f}% "
         f"median_ms={np.median(ms):.1f} p99_ms={np.percentile(ms, 99):.1f} "
         f"cpu_median_ms={np.median(cpu):.1f} cpu_p99_ms={np.percentile(cpu, 99):.1f} "
         f"iterations={iterations:.0f} statuses={statuses}"
@@ -87,18 +98,22 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="noise seed")
     parser.add_argument("--profile", default=None, help="cProfile the first plan to FILE")
     parser.add_argument("--method", choices=METHODS, default="ipopt", help="re-plan solver")
+    parser.add_argument("--deadline", type=float, default=math.inf, help="per re-plan [s]")
     args = parser.parse_args(argv)
     files = {f.stem: f for f in bundled_problems()}
     for i, name in enumerate(args.plans.split(",")):
         solution = cpopt.solve(cpopt.load(files[name]))
         rng = np.random.default_rng(args.seed)
-        sweep(solution, args.period, args.dq, args.dqd, rng, args.method)  # builds: untimed
+        sweep(
+            solution, args.period, args.dq, args.dqd, rng, args.method, args.deadline
+        )  # builds: untimed
         profiler = cProfile.Profile() if args.profile and i == 0 else None
         if profiler:
             profiler.enable()
         replans = [
             r for _ in range(args.rounds) for r in sweep(solution, args.period, args.dq,
-                                                         args.dqd, rng, args.method)
+                                                         args.dqd, rng, args.method,
+                                                         args.deadline)
         ]  # fmt: skip
         if profiler:
             profiler.disable()

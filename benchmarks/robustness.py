@@ -23,13 +23,15 @@ up to half the plan's duration later for ``tvlqr_timescaled``.
 
 ``flat_mpc`` (TVLQR around the plan re-solved from the measured state every 20 ms,
 :mod:`cpopt.tracking.mpc`) runs on the same plants one run at a time, its re-plans within
-``--replan-deadline`` of wall time (default: the 20 ms period), and prints
-``REPLAN <plan> median_ms=<ms> p99_ms=<ms> misses=<fraction>`` over all its re-plans (misses:
-over the deadline or not solved); it has no mass margins. Every controller also gets a
-RealAIGym-style score (:mod:`cpopt.tracking.scores`, ``--score-values`` per category, 0 for
-none): ``SCORE <plan> <controller> model=... velocity_noise=... torque_noise=... gain=...
-delay=... overall=...`` (torque noise up to 10 % of the motors' limits, both actuator gains
-0.5 .. 1.5, actuation delay 0 .. 40 ms).
+``--replan-deadline`` of wall time (default: the 20 ms period), solved by ``--replan-method``
+(``ipopt`` or ``sqp``, as ``tracking.replan_method``), and prints
+``REPLAN <plan> median_ms=<ms> p99_ms=<ms> misses=<fraction> feasible=<fraction>`` over all
+its re-plans (misses: over the deadline or without a plan to follow; feasible: followed as the
+SQP's best feasible iterate, not solved to optimality); it has no mass margins. Every
+controller also gets a RealAIGym-style score (:mod:`cpopt.tracking.scores`,
+``--score-values`` per category, 0 for none): ``SCORE <plan> <controller> model=...
+velocity_noise=... torque_noise=... gain=... delay=... overall=...`` (torque noise up to 10 %
+of the motors' limits, both actuator gains 0.5 .. 1.5, actuation delay 0 .. 40 ms).
 
 A run succeeds when at T the CP is within 2 cm and theta within 5 deg of the goal, every joint
 velocity within 0.25 rad/s (m/s) of the goal's, and it never diverged
@@ -174,7 +176,7 @@ def measure_mpc(problem, plan, args) -> Row:
     if problem.planner != "optimize" or problem.spec.optimizer.curve == "path_timing":
         row.note = "refused: flat_mpc re-plans B-spline plans of planner: optimize"
         return row
-    settings = MPCSettings(deadline=args.replan_deadline)
+    settings = MPCSettings(deadline=args.replan_deadline, method=args.replan_method)
     mpc = FlatMPC(problem, plan, args.rate, settings)
     plant, noise = benchmark_plant(mpc.reference, problem.spec.optimizer.limits.torque)
     mpc.torque_limit = plant.torque_limit
@@ -470,6 +472,12 @@ def main(argv=None) -> int:
         type=float,
         help="flat_mpc: wall time a re-plan may take [s] (default: its 20 ms period)",
     )
+    parser.add_argument(
+        "--replan-method",
+        choices=("ipopt", "sqp"),
+        default="ipopt",
+        help="flat_mpc: the re-plans' solver (tracking.replan_method; default ipopt)",
+    )
     args = parser.parse_args(argv)
     args.controllers = tuple(args.controllers.split(","))
     unknown = set(args.controllers) - set(CONTROLLERS)
@@ -513,7 +521,7 @@ def main(argv=None) -> int:
             f = r.replan
             print(
                 f"REPLAN {r.plan} median_ms={f['median_ms']:.1f} p99_ms={f['p99_ms']:.1f} "
-                f"misses={f['misses']:.3f}"
+                f"misses={f['misses']:.3f} feasible={f['feasible']:.3f}"
             )
     from cpopt.tracking.scores import score_line
 

@@ -179,7 +179,8 @@ def track(
         optimize`` only).
     **tracking
         The block's other keys: ``rate_hz``, ``Q``, ``R``, ``Qf``, ``poles``, ``noise``,
-        ``replan_period``, ``replan_delay``, ``replan_deadline`` (see docs/problems.md).
+        ``replan_period``, ``replan_delay``, ``replan_deadline``, ``replan_method`` (see
+        docs/problems.md).
 
     Returns
     -------

@@ -85,13 +85,17 @@ def replan(
     free_compensator : bool
         False holds xi and eta at the plan's values at t.
     method : str
-        ``ipopt`` (the default) or ``sqp``.
+        ``ipopt`` (the default) or ``sqp``. The SQP stopped by its deadline or iteration
+        limit returns its best iterate that keeps every row, status ``feasible``: a plan from
+        (q, qd) to the goal within the limits, certified like a solved one and less than
+        optimal (``.usable``; Ipopt's stopped iterates are not returned as plans).
 
     Returns
     -------
     Replan
         ``.status``, ``.plan`` (the new plan, or the previous one when the re-plan did not
-        solve in time: ``.kept_previous``), ``.iterate``, ``.iterations``, ``.time_s``.
+        solve in time: ``.kept_previous``), ``.usable`` (``solved`` or ``feasible``),
+        ``.iterate``, ``.iterations``, ``.time_s``.
 
     Raises
     ------

@@ -135,6 +135,7 @@ def _tracking_keys() -> list[Bad]:
     cases += [{"Q": "abc"}, {"Q": [1.0, 2.0]}, {"R": [-1.0, 1.0]}, {"nope": 1}]
     cases += [{"noise": {"seed": -1}}, {"poles": [1.0, 1.0, 1.0, 1.0]}]
     cases += [{"replan_period": 0}, {"replan_delay": -1.0}, {"replan_deadline": "soon"}]
+    cases += [{"replan_method": "acados"}]
     return [Bad(repr(c), c, tuple(c)) for c in cases]
 
 

@@ -59,13 +59,15 @@ def test_a_replan_takes_effect_after_its_delay():
     assert MPCSettings(deadline=0.5).wall_deadline() == 0.5
 
 
-def test_the_tracking_block_runs_flat_mpc(tmp_path):
+@pytest.mark.parametrize("method", ["ipopt", "sqp"])
+def test_the_tracking_block_runs_flat_mpc(tmp_path, method):
     data = read_yaml(FILE)
     data["tracking"] = {
         "controller": "flat_mpc",
         "replan_period": 0.25,
         "replan_delay": 0.01,
         "replan_deadline": 10.0,
+        "replan_method": method,
     }
     file = tmp_path / "mpc.yaml"
     file.write_text(yaml.safe_dump(data))
@@ -83,6 +85,7 @@ def test_the_tracking_block_runs_flat_mpc(tmp_path):
         ({"tracking.replan_period": 0}, "tracking.replan_period", "greater than 0"),
         ({"tracking.replan_delay": -0.01}, "tracking.replan_delay", "greater than 0"),
         ({"tracking.replan_deadline": "soon"}, "tracking.replan_deadline", "number"),
+        ({"tracking.replan_method": "acados"}, "tracking.replan_method", "'ipopt' or 'sqp'"),
     ],
 )
 def test_bad_flat_mpc_settings_are_refused_by_key_path(change, path, words, tmp_path, capsys):
@@ -119,7 +122,9 @@ def test_benchmark_prints_replan_and_score_lines():
     assert len(robust) == 2 and robust[0] == robust[1]
     (replan,) = [ln for ln in lines if ln.startswith("REPLAN ")]
     assert re.fullmatch(
-        r"REPLAN transfer_min_torque median_ms=\d+\.\d p99_ms=\d+\.\d misses=1\.000", replan
+        r"REPLAN transfer_min_torque median_ms=\d+\.\d p99_ms=\d+\.\d misses=1\.000"
+        r" feasible=0\.000",
+        replan,
     )
     scores = [ln.split(" ", 3) for ln in lines if ln.startswith("SCORE ")]
     assert [s[2] for s in scores] == ["tvlqr", "flat_mpc"] and scores[0][3] == scores[1][3]

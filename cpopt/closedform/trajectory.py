@@ -74,12 +74,13 @@ def sample(plan: CPPlan, per_phase: int = 401) -> Trajectory:
     return _completed(plan, t, phase, cp, z)
 
 
-def reachable(plan: CPPlan) -> Trajectory | None:
-    """The plan sampled (:func:`sample`) when its joint motion exists at every point, else None:
-    a plan solved on a grid may leave the arm's reach between the grid's points, and a plan
-    handed back as solved must be one the caller can sample (and re-plan from)."""
+def reachable(plan: CPPlan, per_phase: int = 401) -> Trajectory | None:
+    """The plan sampled (:func:`sample`, ``per_phase`` samples a phase) when its joint motion
+    exists at every point, else None: a plan solved on a grid may leave the arm's reach
+    between the grid's points, and a plan handed back as solved must be one the caller can
+    sample (and re-plan from)."""
     try:
-        return sample(plan)
+        return sample(plan, per_phase)
     except ReachError:
         return None
 

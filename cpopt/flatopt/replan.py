@@ -10,7 +10,8 @@ phases, :data:`FIT_ORDERS`), and solved by Ipopt within a deadline. One round on
 coarser grid of |gamma| than the planner's (:data:`GAMMA_GRID`): a re-plan does not refine
 its sample grid (a refinement is a new structure and a new build); its gamma is certified
 exactly (within :data:`GAMMA_TOLERANCE`), its limits on the grid, and a re-plan that does
-not solve, or solves too late, keeps the previous plan.
+not solve, or solves too late, keeps the previous plan (but for the SQP's ``feasible``
+iterate at its deadline, :data:`USABLE`).
 """
 
 from __future__ import annotations
@@ -67,12 +68,31 @@ GAMMA_TOLERANCE = 0.5
 points: the margin keeps the flat map away from its singularity (gamma = 0), and a re-plan is
 followed for one re-plan period only (at a tolerance of 2 %, 43 of swing_up_holding's 148
 re-plans were refused)."""
+POST_RESERVE = 2.5
+"""The time a re-plan keeps after its solver for unpacking and certifying the plan, as a
+multiple of the time it spent before the solver (both are a few milliseconds of Python that
+scale alike with the machine's speed; measured on transfer_min_torque's re-plan loop at a
+20-ms deadline, idle: 2.0-2.8 ms before the solver, 4.5-5.7 ms after): at 1.5, 45 of 88
+re-plans whose solver ran to its deadline were ``late``, their plans thrown away."""
+CHECK_SAMPLES = 101
+"""Samples a phase of a re-plan's reach check (:func:`reachable`), which are also the next
+re-plan's seed: the planner's 401 took 6.7 ms of a 25-ms re-plan (transfer_min_torque), and a
+re-plan is followed for one re-plan period, tracked on its own control grid (where flat_mpc
+checks its reach again), and refitted from these samples by the next re-plan (20 CP
+coefficients a phase at most)."""
 REPLAN_ITERATIONS = 100
 """Most Ipopt iterations of a re-plan (a warm-started re-plan near its plan takes a few; one
 that needs more has lost its basin and the previous plan is the better bet)."""
 SQP_ITERATIONS = 30
 """Most SQP iterations of a re-plan (:mod:`cpopt.flatopt.replan_sqp`; one from the plan's own
 state converges in about six)."""
+USABLE = ("solved", "feasible")
+"""Statuses of a re-plan whose plan is followed. ``feasible``: the SQP stopped at its deadline
+or iteration limit and returned its best iterate that keeps every row (limits, |gamma| on the
+grid, reach), then certified like a solved one: a plan from the measured state to the goal
+within the limits, less than optimal in its objective (the real-time iteration of fast MPC:
+the next re-plan goes on optimizing from it). Following it, not the previous plan, is what
+re-planning is for: the previous plan starts from a state the arm is not in."""
 METHODS = ("ipopt", "sqp")
 """How a re-plan solves its NLP: ``ipopt`` on the lifted NLP (the default), ``sqp`` condensed
 to its core variables (:mod:`cpopt.flatopt.replan_sqp`). Measured with
@@ -89,11 +109,13 @@ class Replan:
     Attributes
     ----------
     status : str
-        ``solved``; ``holding`` (less than :data:`~cpopt.flatopt.remaining_motion.NEAR_NODE` left:
-        the plan holds the goal); ``late`` (solved after the deadline); ``gamma_margin`` (solved
-        on its grid, |gamma| below gamma_min between its points); ``out_of_reach`` (solved on
-        its grid, out of the arm's reach between its points); or the solver's status
-        (``time_limit``, ``max_iterations``, ``infeasible``, ``not_converged``).
+        ``solved``; ``feasible`` (the SQP's best feasible iterate at its deadline or
+        iteration limit, certified like a solved one: :data:`USABLE`); ``holding`` (less
+        than :data:`~cpopt.flatopt.remaining_motion.NEAR_NODE` left: the plan holds the
+        goal); ``late`` (solved after the deadline); ``gamma_margin`` (solved on its grid,
+        |gamma| below gamma_min between its points); ``out_of_reach`` (solved on its grid,
+        out of the arm's reach between its points); or the solver's status (``time_limit``,
+        ``max_iterations``, ``infeasible``, ``not_converged``).
     plan : CPPlan
         The plan to follow from now on, in the plan's clock: the new one when solved, else the
         previous one.
@@ -132,8 +154,14 @@ class Replan:
 
     @property
     def solved(self) -> bool:
-        """True when the plan is a new one, solved in time."""
+        """True when the plan is a new one, solved to optimality in time."""
         return self.status == "solved"
+
+    @property
+    def usable(self) -> bool:
+        """True when the plan is a new one to follow: solved, or a feasible iterate of a
+        solver stopped at its deadline or iteration limit (:data:`USABLE`)."""
+        return self.status in USABLE
 
 
 def variable_bounds(nlp, problem: Problem) -> tuple[np.ndarray, np.ndarray]:
@@ -204,8 +232,10 @@ def start_vector(nlp, problem: Problem, signs, seed: Trajectory, p: np.ndarray) 
     return initial_guess(nlp, problem, signs)
 
 
-def _solve(rest: Remaining, seed: Trajectory, deadline: float, limits: tuple, warm, motors):
+def _solve(rest: Remaining, seed: Trajectory, clock: tuple, limits: tuple, warm, motors):
     """(run, new plan in the plan's clock, multipliers) of one solve of the remaining motion;
+    ``clock`` the re-plan's (start, deadline) ``time.monotonic()`` instants (the solver stops
+    :data:`POST_RESERVE` times the time spent before it ahead of the deadline);
     ``limits`` (method, most iterations); ``warm`` (:class:`Multipliers` or None) the previous
     re-plan's multipliers, used when its structure is this one's (the solver then starts from
     the primal-dual point); ``motors`` the torque limits to plan within (None: the
@@ -225,6 +255,8 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, limits: tuple, wa
     p = nlp.parameters(problem.values)
     lbx, ubx = variable_bounds(nlp, problem)
     x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
+    started, deadline = clock
+    deadline -= POST_RESERVE * (time.monotonic() - started)
     if method == "sqp":
         lam0 = -warm.lam_g if resume else None  # NlpRun's sign back
         bounds = (lbx, ubx, nlp.lbg, nlp.ubg)
@@ -234,7 +266,8 @@ def _solve(rest: Remaining, seed: Trajectory, deadline: float, limits: tuple, wa
         if resume:
             arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
         run = run_nlp(nlp.solver, nlp.reporter, "", iterations, None, deadline, **arguments)
-    multipliers = Multipliers(key, run.lam_x, run.lam_g) if run.status == "solved" else warm
+    usable = run.status in USABLE
+    multipliers = Multipliers(key, run.lam_x, run.lam_g) if usable else warm
     try:
         plan, _, _ = plan_from(problem, nlp, run.x, p, signs, switches)
     except ValueError:  # an iterate so far off that its phases no longer make curves
@@ -249,13 +282,13 @@ def verdict(
     ``gamma_margin`` when the plan's certified |gamma| is below ``gamma_min`` [m/s^2],
     ``out_of_reach`` when it leaves the arm's reach between its samples (:func:`reachable`;
     ``samples``: what it gave, when the caller has it)."""
-    if status != "solved":
+    if status not in USABLE:
         return status
     if new is None:
         return "not_converged"
     if new.min_abs_gamma()[0] < gamma_min * (1 - GAMMA_TOLERANCE):
         return "gamma_margin"
-    samples = reachable(new) if samples is None else samples
+    samples = reachable(new, CHECK_SAMPLES) if samples is None else samples
     return status if samples is not None else "out_of_reach"
 
 
@@ -309,7 +342,8 @@ def replan(
         keeps the previous plan and reports the solver's status and its iterate.
     """
     tic = time.perf_counter()
-    deadline = time.monotonic() + deadline_s
+    started = time.monotonic()
+    clock = (started, started + deadline_s)
     rest = remaining(problem, plan, t, q, qd, free_compensator)
     if rest is None:
         return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
@@ -317,13 +351,13 @@ def replan(
     if iterations is None:
         iterations = SQP_ITERATIONS if method == "sqp" else REPLAN_ITERATIONS
     limits = (method, iterations)
-    run, new, multipliers = _solve(rest, seed, deadline, limits, warm, torque_limit)
-    samples = reachable(new) if run.status == "solved" and new is not None else None
+    run, new, multipliers = _solve(rest, seed, clock, limits, warm, torque_limit)
+    samples = reachable(new, CHECK_SAMPLES) if run.status in USABLE and new is not None else None
     status = verdict(run.status, new, problem.spec.optimizer.gamma_min, samples)
     elapsed = time.perf_counter() - tic
-    if status == "solved" and elapsed > deadline_s:
+    if status in USABLE and elapsed > deadline_s:
         status = "late"
-    ok = status == "solved"
+    ok = status in USABLE
     return Replan(
         status=status,
         plan=new if ok else plan,
@@ -344,6 +378,7 @@ __all__ = [
     "REPLAN_IPOPT",
     "REPLAN_ITERATIONS",
     "SQP_ITERATIONS",
+    "USABLE",
     "Multipliers",
     "Replan",
     "reachable",

@@ -20,9 +20,16 @@ face (:func:`convexified`) and damped where steps keep being cut (:data:`DAMPING
 search on the l1 merit function f + nu sum(violations), with a second-order correction of a
 rejected whole step (:func:`corrected`), keeps the steps honest far from the optimum. It
 stops when the rows hold within :data:`FEASIBILITY` and the QP predicts less than
-:data:`DECREASE_TOLERANCE` of the objective, or at its iteration limit or deadline, returning
-the last iterate (an :class:`~cpopt.runtime.solver.NlpRun`, as Ipopt's runs are returned, so
-the re-plan's unpacking, certificate and fallback are the same).
+:data:`DECREASE_TOLERANCE` of the objective, or at its iteration limit or deadline (before an
+iteration as long as the mean one so far would overrun it), returning an
+:class:`~cpopt.runtime.solver.NlpRun` as Ipopt's runs are returned, so the re-plan's
+unpacking, certificate and fallback are the same. Stopped before it converged, it returns its
+best iterate that keeps every row, status ``feasible`` (an anytime answer: the boundary
+conditions are eliminated, so every iterate starts at the measured state and ends at the
+goal, and one that keeps the rows is a plan within the limits; measured on
+transfer_min_torque's re-plan loop at a 20-ms deadline, 81 of 88 re-plans were followed that
+way, against none solved by Ipopt or by this SQP run to convergence), else its last
+iterate.
 
 Measured in the re-plan loop (benchmarks/replan_loop.py, ``--method sqp``, one round, the
 other core busy): swing_up_holding 89.2 % solved (66 of 74; Ipopt, two rounds idle, 93.9 %),
@@ -339,8 +346,9 @@ def solve(
     it = _Iterate(x, f, g, lam * scaled.objective / scaled.rows)
     scale = np.maximum(1.0, np.abs(x))
     nu, status, k, damping = 1.0, "max_iterations", 0, 0.0
+    best = _Best()
     for k in range(1, iterations + 1):
-        if time.monotonic() > deadline:
+        if _out_of_time(deadline, tic, k - 1):
             status, k = "time_limit", k - 1
             break
         step = _step(scaled, it, (lbx, ubx, lbg, ubg), scale, damping)
@@ -353,10 +361,35 @@ def solve(
             status = "solved"  # the point, not the step: it is feasible and optimal
             it.lam = step.lam
             break
+        best.offer(it, feasible)
         nu = max(nu, 1.1 * float(np.max(np.abs(step.lam), initial=0.0)))
         it = _line_search(scaled, it, step, nu, (lbg, ubg))
         damping = _damped(damping, it.alpha, step, scale)
+    if status != "solved":
+        feasible = np.max(violation(it.g, lbg, ubg) / scaled.rows, initial=0.0) <= FEASIBILITY
+        best.offer(it, feasible)
+        if best.iterate is not None:
+            it, status = best.iterate, "feasible"
     return _run(nlp, scaled, it, status, k, time.perf_counter() - tic)
+
+
+@dataclass
+class _Best:
+    """The feasible iterate of lowest objective an SQP run has passed (its anytime answer)."""
+
+    iterate: _Iterate | None = None
+
+    def offer(self, it: _Iterate, feasible: bool) -> None:
+        if feasible and math.isfinite(it.f) and (self.iterate is None or it.f < self.iterate.f):
+            self.iterate = it
+
+
+def _out_of_time(deadline: float, tic: float, done: int) -> bool:
+    """True when another iteration, as long as the mean of the ``done`` ones so far, would end
+    after ``deadline`` (a ``time.monotonic()`` instant): a re-plan is stopped before it
+    overruns, not after."""
+    mean = (time.perf_counter() - tic) / done if done else 0.0
+    return time.monotonic() + mean > deadline
 
 
 def _step(nlp: Scaled, it: _Iterate, bounds, scale: np.ndarray, damping: float = 0.0):
@@ -463,7 +496,11 @@ def _run(nlp, scaled: Scaled, it: _Iterate, status: str, iterations: int, second
     x = np.r_[it.x, np.asarray(nlp.lift(it.x, scaled.p)).ravel()]
     lam_g = np.zeros(len(nlp.rows))
     lam_g[c.rows] = -scaled.original(it.lam)  # NlpRun's sign: positive where a lower bound binds
-    words = {"solved": "Solve_Succeeded", "time_limit": "Maximum_CpuTime_Exceeded"}
+    words = {
+        "solved": "Solve_Succeeded",
+        "time_limit": "Maximum_CpuTime_Exceeded",
+        "feasible": "SQP_Feasible_Iterate",
+    }
     return NlpRun(
         x=x,
         objective=it.f / scaled.objective,

@@ -330,6 +330,7 @@ class TrackingSpec(_Spec):
     replan_period: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 0.02
     replan_delay: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] | None = None
     replan_deadline: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] | None = None
+    replan_method: Literal["ipopt", "sqp"] = "ipopt"
     Q: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_Q)
     R: Pair(Positive) | None = None  # absent: relative to the plan's peak torques
     Qf: Annotated[list[NonNegative], Field(min_length=6, max_length=6)] = list(DEFAULT_QF)

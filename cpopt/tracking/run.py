@@ -174,7 +174,9 @@ def track_problem(problem, plan) -> TrackingOutcome | TrackingRefused:
     if spec.controller == "flat_mpc":  # re-plans with the flat optimizer: imported when used
         from .mpc import MPCSettings, track_flat_mpc
 
-        settings = MPCSettings(spec.replan_period, spec.replan_delay, spec.replan_deadline)
+        settings = MPCSettings(
+            spec.replan_period, spec.replan_delay, spec.replan_deadline, method=spec.replan_method
+        )
         return track_flat_mpc(problem, plan, plant, noise, spec.rate_hz, None, settings, **gains)
     try:
         return track(
