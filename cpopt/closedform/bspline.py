@@ -58,20 +58,29 @@ class SplineBasis:
         mids = 0.5 * (b[:-1] + b[1:])
         w = np.diff(b)
         d = self.degree
-        pieces = np.zeros((mids.size, d + 1, 2))
         # The derivatives are differences of the coefficients: taken of the coefficients less
         # their mean (B-splines sum to one, so only the value moves), they lose the digits of
         # the curve's offset, not of its motion.
         ref = coeffs.mean(axis=0)
-        derivs = [self.matrix(mids, r) @ (coeffs - ref) for r in range(d + 1)]  # (pieces, 2)
-        derivs[0] = derivs[0] + ref
-        for k in range(mids.size):
-            # Taylor at the middle: sum_j D_j (w (lam - 1/2))^j / j!, expanded in powers of lam
-            for j in range(d + 1):
-                term = derivs[j][k] * w[k] ** j / factorial(j)
-                for i in range(j + 1):
-                    pieces[k, i] += term * comb(j, i) * (-0.5) ** (j - i)
+        derivs = np.stack([self.matrix(mids, r) @ (coeffs - ref) for r in range(d + 1)])
+        derivs[0] = derivs[0] + ref  # (orders, pieces, 2)
+        # Taylor at the middle: sum_j D_j (w (lam - 1/2))^j / j!, expanded in powers of lam;
+        # one product over every piece (a loop over pieces and orders took most of a
+        # re-plan's unpacking)
+        terms = derivs * (w[None, :] ** np.arange(d + 1)[:, None])[:, :, None]
+        pieces = np.einsum("jkc,ji->kic", terms, _taylor_shift(d))
         return PiecewisePolynomial(t0 + h * b, pieces)
+
+
+@lru_cache(maxsize=16)
+def _taylor_shift(degree: int) -> np.ndarray:
+    """M[j, i] = comb(j, i) (-1/2)^(j - i) / j!: the j-th Taylor term about a piece's middle
+    as powers lam^i of its own coordinate (zero for i > j)."""
+    M = np.zeros((degree + 1, degree + 1))
+    for j in range(degree + 1):
+        for i in range(j + 1):
+            M[j, i] = comb(j, i) * (-0.5) ** (j - i) / factorial(j)
+    return M
 
 
 def _knots(degree: int, count: int) -> np.ndarray:

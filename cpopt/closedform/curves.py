@@ -105,20 +105,73 @@ class PiecewisePolynomial:
         finite = np.all(np.isfinite(self.coeffs), axis=(1, 2))
         # Candidates of every piece evaluated in one call: per call, numpy's overhead is most
         # of the cost on a re-plan's few pieces (the Polynomial class took 6 ms a plan).
-        cands = [self._stationary(k, h[k], offset) if finite[k] else [] for k in range(h.size)]
+        cands = self._stationary_all(h, offset, finite)
         owner = np.repeat(np.arange(h.size), [len(c) for c in cands])
         times = self.breaks[owner] + np.concatenate([[], *cands]) * h[owner]
         # Evaluate the candidates on the curve itself: the squared polynomial loses digits.
         acc = self.derivatives(times, 2)[:, :, 2] + np.asarray(offset)
         norms = np.hypot(acc[:, 0], acc[:, 1])
+        # each piece's smallest candidate: the first of its group sorted by norm
+        order = np.lexsort((norms, owner))
+        first = order[np.r_[True, owner[order][1:] != owner[order][:-1]]] if owner.size else []
+        best = dict(zip(owner[first].tolist(), first.tolist(), strict=True))
         out = []
         for k in range(h.size):
             if not finite[k]:  # a failed solve's iterate: no minimum
                 out.append((math.nan, float(self.breaks[k])))
                 continue
-            mine = np.flatnonzero(owner == k)
-            i = mine[int(np.argmin(norms[mine]))]
+            i = best[k]
             out.append((float(norms[i]), float(times[i])))
+        return out
+
+    def _stationary_all(
+        self, h: np.ndarray, offset: tuple[float, float], finite: np.ndarray
+    ) -> list:
+        """Every piece's candidates (:meth:`_stationary`; none for a non-finite piece), the
+        roots of all pieces' slopes from one batched eigenvalue call (one call a piece was
+        most of a re-plan's certificate); a piece whose slope's leading coefficient is
+        negligible (a lower degree than its neighbours') goes by :meth:`_stationary`."""
+        d = self.coeffs.shape[1] - 1
+        if d < 3:
+            return [[0.0, 1.0] if finite[k] else [] for k in range(h.size)]
+        m = d - 2  # the degree of p''
+        j = np.arange(2, d + 1)
+        with np.errstate(invalid="ignore", over="ignore"):
+            acc = self.coeffs[:, 2:, :] * (j * (j - 1))[None, :, None] / (h**2)[:, None, None]
+            acc[:, 0, :] += np.asarray(offset, float)
+            outer = np.einsum("kac,kbc->kab", acc, acc)
+        square = np.zeros((h.size, 2 * m + 1))
+        for a in range(m + 1):
+            square[:, a : a + m + 1] += outer[:, a, :]
+        slope = square[:, 1:] * np.arange(1, 2 * m + 1)
+        curv = slope[:, 1:] * np.arange(1, 2 * m)
+        lead = np.abs(slope[:, -1])
+        with np.errstate(invalid="ignore"):
+            batched = finite & (lead > 1e-12 * np.abs(slope).max(axis=1, initial=0.0))
+        out = [[] for _ in range(h.size)]
+        for k in np.flatnonzero(finite & ~batched):
+            out[k] = self._stationary(int(k), float(h[k]), offset)
+        rows = np.flatnonzero(batched)
+        if not rows.size:
+            return out
+        n = slope.shape[1] - 1
+        companion = np.zeros((rows.size, n, n))
+        companion[:, np.arange(1, n), np.arange(n - 1)] = 1.0
+        companion[:, :, -1] = -slope[rows, :-1] / slope[rows, -1:]
+        roots = np.linalg.eigvals(companion)
+        keep = (np.abs(roots.imag) <= 1e-4) & (roots.real > -1e-6) & (roots.real < 1 + 1e-6)
+        owner, lam = np.nonzero(keep)[0], roots.real[keep]
+        active = np.ones(lam.size, bool)
+        for _ in range(4):  # Newton polishing: companion-matrix roots lose digits
+            c = _horner(curv[rows[owner]], lam)
+            active &= c != 0
+            step = np.divide(
+                _horner(slope[rows[owner]], lam), c, where=active, out=np.zeros_like(c)
+            )
+            lam = lam - step
+        lam = np.clip(lam, 0.0, 1.0)
+        for i, k in enumerate(rows):
+            out[k] = [0.0, 1.0, *lam[owner == i].tolist()]
         return out
 
     def _stationary(self, k: int, h: float, offset: tuple[float, float]) -> list[float]:
@@ -198,3 +251,11 @@ def with_end_jets(
     for k, at_start, at_end in fixes:
         coeffs[k, :8] += hermite(b[k], b[k + 1], at_start, at_end).coeffs[0]
     return PiecewisePolynomial(b, coeffs)
+
+
+def _horner(coeffs: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Row i's polynomial (ascending coefficients, ``coeffs[i]``) at ``x[i]``."""
+    out = np.zeros_like(x)
+    for j in range(coeffs.shape[1] - 1, -1, -1):
+        out = out * x + coeffs[:, j]
+    return out

@@ -224,18 +224,19 @@ def reproduced(seed: Trajectory, t: np.ndarray, least: float) -> bool:
 
 
 def targets(
-    seed: Trajectory, t: np.ndarray, least: float, h: float, gains: list[float]
+    seed: Trajectory, t: np.ndarray, least: float, h: float, gains: dict[int, float]
 ) -> dict[int, tuple[np.ndarray, float]]:
     """What the fit aims at at times t of a phase lasting h [s], per CP derivative order r:
     (target (len(t), 2), unit of misfit), :data:`EXACT_FIT` (``gains[r]``: the most a unit
-    coefficient changes the r-th derivative in the phase's own time) for an exact plan whose
+    coefficient changes the r-th derivative in the phase's own time; the orders of ``gains``
+    are those aimed at) for an exact plan whose
     gamma keeps the sign of ``least`` there, else :data:`SEED_FIT`. The
     acceleration is moved along the link so that sign(least) gamma >= |least|
     (p'' + g0 e_y = gamma (cos, sin)(theta)): a stretch where the seed's gamma is too small or
     of the other sign would start the phase near its singularity."""
     gamma = np.interp(t, seed.t, seed.gamma)
     exact = reproduced(seed, t, least)
-    units = {r: EXACT_FIT * gains[r] / h**r for r in range(5)} if exact else SEED_FIT
+    units = {r: EXACT_FIT * gains[r] / h**r for r in gains} if exact else SEED_FIT
     out = {}
     for r, unit in units.items():
         column = seed.cp[:, :, r] if exact or r < 4 else np.zeros_like(seed.cp[:, :, 0])
@@ -243,8 +244,9 @@ def targets(
     theta = np.interp(t, seed.t, seed.z[:, 2])
     wanted = np.sign(least) * np.maximum(np.sign(least) * gamma, abs(least))
     along = np.column_stack([np.cos(theta), np.sin(theta)])
-    acceleration, unit = out[2]
-    out[2] = (acceleration + (wanted - gamma)[:, None] * along, unit)
+    if 2 in out:
+        acceleration, unit = out[2]
+        out[2] = (acceleration + (wanted - gamma)[:, None] * along, unit)
     return out
 
 
@@ -268,7 +270,10 @@ def fitted(
     exact = reproduced(seed, span[0] + s * h, least)
     if not exact:
         s = np.linspace(0.0, 1.0, FIT_SAMPLES)  # a collocation seed: continuous at the ends
-    gains = [float(np.abs(basis.matrix(s, r)).max()) for r in range(5)]
+    # only the orders fitted: each basis matrix at these s (new for every phase length) costs
+    # a Cox-de Boor recursion, most of a re-plan's warm start when all five were made
+    aimed = range(5) if not exact or orders is None else [r for r in range(5) if r in orders]
+    gains = {r: float(np.abs(basis.matrix(s, r)).max()) for r in aimed or range(5)}
     rows, rhs = [], []
     aims = targets(seed, span[0] + s * h, least, h, gains)
     if orders is not None and set(orders) & set(aims):
