@@ -73,7 +73,18 @@ POST_RESERVE = 2.5
 multiple of the time it spent before the solver (both are a few milliseconds of Python that
 scale alike with the machine's speed; measured on transfer_min_torque's re-plan loop at a
 20-ms deadline, idle: 2.0-2.8 ms before the solver, 4.5-5.7 ms after): at 1.5, 45 of 88
-re-plans whose solver ran to its deadline were ``late``, their plans thrown away."""
+re-plans whose solver ran to its deadline were ``late``, their plans thrown away. The first
+re-plan of a structure has only this; the next ones take :data:`POST_TIMES`' figure when it
+is larger."""
+POST_MARGIN = 1.25
+""":data:`POST_TIMES` keeps this multiple of the time measured."""
+POST_TIMES: dict[tuple, float] = {}
+"""The time [s] the last certified re-plan of each NLP structure (:func:`structure`) took
+after its solver, times :data:`POST_MARGIN`: the reserve of the next one (a process-wide
+record of measured times, not of results). Measured on swing_up_holding's re-plan loop at a
+20-ms deadline: with the reserve from the time before the solver alone (2.5 ms of it once
+its B-spline fits were trimmed, against 5-8 ms after), 70 of 148 re-plans ended late or
+without a feasible iterate."""
 CHECK_SAMPLES = 101
 """Samples a phase of a re-plan's reach check (:func:`reachable`), which are also the next
 re-plan's seed: the planner's 401 took 6.7 ms of a 25-ms re-plan (transfer_min_torque), and a
@@ -232,10 +243,12 @@ def start_vector(nlp, problem: Problem, signs, seed: Trajectory, p: np.ndarray) 
     return initial_guess(nlp, problem, signs)
 
 
-def _solve(rest: Remaining, seed: Trajectory, clock: tuple, limits: tuple, warm, motors):
+def _solve(rest: Remaining, seed: Trajectory, clock: list, limits: tuple, warm, motors):
     """(run, new plan in the plan's clock, multipliers) of one solve of the remaining motion;
-    ``clock`` the re-plan's (start, deadline) ``time.monotonic()`` instants (the solver stops
-    :data:`POST_RESERVE` times the time spent before it ahead of the deadline);
+    ``clock`` the re-plan's [start, deadline, solver's end] ``time.monotonic()`` instants
+    (the solver stops ahead of the deadline by :data:`POST_RESERVE` times the time spent
+    before it, or by :data:`POST_TIMES`' figure for the structure when larger; the solver's
+    end is written into it);
     ``limits`` (method, most iterations); ``warm`` (:class:`Multipliers` or None) the previous
     re-plan's multipliers, used when its structure is this one's (the solver then starts from
     the primal-dual point); ``motors`` the torque limits to plan within (None: the
@@ -255,8 +268,8 @@ def _solve(rest: Remaining, seed: Trajectory, clock: tuple, limits: tuple, warm,
     p = nlp.parameters(problem.values)
     lbx, ubx = variable_bounds(nlp, problem)
     x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
-    started, deadline = clock
-    deadline -= POST_RESERVE * (time.monotonic() - started)
+    started, deadline, _ = clock
+    deadline -= max(POST_RESERVE * (time.monotonic() - started), POST_TIMES.get(key, 0.0))
     if method == "sqp":
         lam0 = -warm.lam_g if resume else None  # NlpRun's sign back
         bounds = (lbx, ubx, nlp.lbg, nlp.ubg)
@@ -266,6 +279,7 @@ def _solve(rest: Remaining, seed: Trajectory, clock: tuple, limits: tuple, warm,
         if resume:
             arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
         run = run_nlp(nlp.solver, nlp.reporter, "", iterations, None, deadline, **arguments)
+    clock[2] = time.monotonic()  # the solver's end: what follows is the re-plan's own time
     usable = run.status in USABLE
     multipliers = Multipliers(key, run.lam_x, run.lam_g) if usable else warm
     try:
@@ -343,7 +357,7 @@ def replan(
     """
     tic = time.perf_counter()
     started = time.monotonic()
-    clock = (started, started + deadline_s)
+    clock = [started, started + deadline_s, math.nan]  # the solver's end is written in
     rest = remaining(problem, plan, t, q, qd, free_compensator)
     if rest is None:
         return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
@@ -354,6 +368,8 @@ def replan(
     run, new, multipliers = _solve(rest, seed, clock, limits, warm, torque_limit)
     samples = reachable(new, CHECK_SAMPLES) if run.status in USABLE and new is not None else None
     status = verdict(run.status, new, problem.spec.optimizer.gamma_min, samples)
+    if samples is not None:  # a whole unpacking and certificate: the next one's reserve
+        POST_TIMES[structure(rest)] = POST_MARGIN * (time.monotonic() - clock[2])
     elapsed = time.perf_counter() - tic
     if status in USABLE and elapsed > deadline_s:
         status = "late"
