@@ -85,10 +85,8 @@ def replan(
     free_compensator : bool
         False holds xi and eta at the plan's values at t.
     method : str
-        ``ipopt`` (the default) or ``sqp``. The SQP stopped by its deadline or iteration
-        limit returns its best iterate that keeps every row, status ``feasible``: a plan from
-        (q, qd) to the goal within the limits, certified like a solved one and less than
-        optimal (``.usable``; Ipopt's stopped iterates are not returned as plans).
+        ``ipopt`` (the default) or ``sqp``: stopped early, the SQP returns its best iterate
+        that keeps every row, status ``feasible``, followed like a solved plan.
 
     Returns
     -------

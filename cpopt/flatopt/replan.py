@@ -243,12 +243,12 @@ def start_vector(nlp, problem: Problem, signs, seed: Trajectory, p: np.ndarray) 
     return initial_guess(nlp, problem, signs)
 
 
-def _solve(rest: Remaining, seed: Trajectory, clock: list, limits: tuple, warm, motors):
-    """(run, new plan in the plan's clock, multipliers) of one solve of the remaining motion;
-    ``clock`` the re-plan's [start, deadline, solver's end] ``time.monotonic()`` instants
-    (the solver stops ahead of the deadline by :data:`POST_RESERVE` times the time spent
-    before it, or by :data:`POST_TIMES`' figure for the structure when larger; the solver's
-    end is written into it);
+def _solve(rest: Remaining, seed: Trajectory, clock: tuple, limits: tuple, warm, motors):
+    """(run, new plan in the plan's clock, multipliers, the solver's end as a
+    ``time.monotonic()`` instant) of one solve of the remaining motion; ``clock`` the
+    re-plan's (start, deadline) ``time.monotonic()`` instants (the solver stops ahead of the
+    deadline by :data:`POST_RESERVE` times the time spent before it, or by
+    :data:`POST_TIMES`' figure for the structure when larger);
     ``limits`` (method, most iterations); ``warm`` (:class:`Multipliers` or None) the previous
     re-plan's multipliers, used when its structure is this one's (the solver then starts from
     the primal-dual point); ``motors`` the torque limits to plan within (None: the
@@ -268,7 +268,7 @@ def _solve(rest: Remaining, seed: Trajectory, clock: list, limits: tuple, warm, 
     p = nlp.parameters(problem.values)
     lbx, ubx = variable_bounds(nlp, problem)
     x0 = start_vector(nlp, problem, signs, shifted_seed(seed, rest.t0), p)
-    started, deadline, _ = clock
+    started, deadline = clock
     deadline -= max(POST_RESERVE * (time.monotonic() - started), POST_TIMES.get(key, 0.0))
     if method == "sqp":
         lam0 = -warm.lam_g if resume else None  # NlpRun's sign back
@@ -279,14 +279,14 @@ def _solve(rest: Remaining, seed: Trajectory, clock: list, limits: tuple, warm, 
         if resume:
             arguments.update(lam_x0=warm.lam_x, lam_g0=-warm.lam_g)  # NlpRun's sign back
         run = run_nlp(nlp.solver, nlp.reporter, "", iterations, None, deadline, **arguments)
-    clock[2] = time.monotonic()  # the solver's end: what follows is the re-plan's own time
+    solved_at = time.monotonic()  # what follows is the re-plan's own time
     usable = run.status in USABLE
     multipliers = Multipliers(key, run.lam_x, run.lam_g) if usable else warm
     try:
         plan, _, _ = plan_from(problem, nlp, run.x, p, signs, switches)
     except ValueError:  # an iterate so far off that its phases no longer make curves
-        return run, None, multipliers
-    return run, shifted(plan, rest.t0), multipliers
+        return run, None, multipliers, solved_at
+    return run, shifted(plan, rest.t0), multipliers, solved_at
 
 
 def verdict(
@@ -357,7 +357,6 @@ def replan(
     """
     tic = time.perf_counter()
     started = time.monotonic()
-    clock = [started, started + deadline_s, math.nan]  # the solver's end is written in
     rest = remaining(problem, plan, t, q, qd, free_compensator)
     if rest is None:
         return Replan("holding", plan, True, t, time_s=time.perf_counter() - tic, multipliers=warm)
@@ -365,18 +364,26 @@ def replan(
     if iterations is None:
         iterations = SQP_ITERATIONS if method == "sqp" else REPLAN_ITERATIONS
     limits = (method, iterations)
-    run, new, multipliers = _solve(rest, seed, clock, limits, warm, torque_limit)
+    clock = (started, started + deadline_s)
+    run, new, multipliers, solved_at = _solve(rest, seed, clock, limits, warm, torque_limit)
     samples = reachable(new, CHECK_SAMPLES) if run.status in USABLE and new is not None else None
     status = verdict(run.status, new, problem.spec.optimizer.gamma_min, samples)
     if samples is not None:  # a whole unpacking and certificate: the next one's reserve
-        POST_TIMES[structure(rest)] = POST_MARGIN * (time.monotonic() - clock[2])
+        POST_TIMES[structure(rest)] = POST_MARGIN * (time.monotonic() - solved_at)
     elapsed = time.perf_counter() - tic
     if status in USABLE and elapsed > deadline_s:
         status = "late"
+    return _outcome(status, (plan, new, samples), t, run, elapsed, multipliers)
+
+
+def _outcome(status: str, plans: tuple, t: float, run, elapsed: float, multipliers) -> Replan:
+    """The :class:`Replan` of a finished re-plan; ``plans`` (previous plan, new plan or None,
+    the new plan's samples or None)."""
+    previous, new, samples = plans
     ok = status in USABLE
     return Replan(
         status=status,
-        plan=new if ok else plan,
+        plan=new if ok else previous,
         kept_previous=not ok,
         t=t,
         iterate=new,

@@ -366,8 +366,7 @@ def solve(
         if step is None:
             status = "infeasible" if it.infeasibility(lbg, ubg) > FEASIBILITY else "not_converged"
             break
-        unscaled = violation(it.g, lbg, ubg) / scaled.rows
-        feasible = np.max(unscaled, initial=0.0) <= FEASIBILITY
+        feasible = _keeps_rows(it.g, (lbg, ubg), scaled.rows)
         if feasible and step.decrease <= DECREASE_TOLERANCE * (1.0 + abs(it.f)):
             status = "solved"  # the point, not the step: it is feasible and optimal
             it.lam = step.lam
@@ -377,8 +376,7 @@ def solve(
         it = _line_search(scaled, it, step, nu, (lbg, ubg))
         damping = _damped(damping, it.alpha, step, scale)
     if status != "solved":
-        feasible = np.max(violation(it.g, lbg, ubg) / scaled.rows, initial=0.0) <= FEASIBILITY
-        best.offer(it, feasible)
+        best.offer(it, _keeps_rows(it.g, (lbg, ubg), scaled.rows))
         if best.iterate is not None:
             it, status = best.iterate, "feasible"
     return _run(nlp, scaled, it, status, k, time.perf_counter() - tic)
@@ -391,8 +389,14 @@ def _start_only(nlp, c: Condensed, p, x, lam, bounds, tic: float):
     unit = Scaled(c, p, np.ones(c.rows.size), 1.0, (x, lam, None))
     f, g = unit.values(x)
     it = _Iterate(x, f, g, lam)
-    keeps = np.max(violation(g, *bounds), initial=0.0) <= FEASIBILITY and math.isfinite(f)
+    keeps = _keeps_rows(g, bounds, 1.0) and math.isfinite(f)
     return _run(nlp, unit, it, "feasible" if keeps else "time_limit", 0, time.perf_counter() - tic)
+
+
+def _keeps_rows(g: np.ndarray, bounds, row_scale) -> bool:
+    """True when the rows g (scaled by ``row_scale``) hold their bounds within
+    :data:`FEASIBILITY` in the NLP's own units."""
+    return bool(np.max(violation(g, *bounds) / row_scale, initial=0.0) <= FEASIBILITY)
 
 
 @dataclass
