@@ -82,3 +82,37 @@ PPR_SWING_DOWN_VIA = zoo_problem(
     gamma_switches="auto",
     smooth_torque=True,
 )
+
+# benchmarks/zoo.py --seed 31, draw 7: a PRR transfer hanging, whose seed keeps gamma negative
+# throughout (|gamma| >= 2.83 against gamma_min 2.81); from the closed form the negative sign
+# solves at 255144, 43 times the seed's 5884 (a local optimum), and from the seed at 5881
+PRR_TRANSFER_HANGING = zoo_problem(
+    "prr_transfer_hanging",
+    arm("PRR", (1.323, 2.764), (1.775, 5.423), (0.613, 1.825), branch="forward"),
+    {
+        "duration": 0.842,
+        "start": at_rest(1.1013, -0.4377, -90),
+        "goal": at_rest(1.1808, 0.375, -90),
+    },
+    gamma_min=2.81,
+    gamma_switches=0,
+    smooth_torque=False,
+    refine_basis=False,
+)
+
+# benchmarks/zoo.py --seed 31, draw 0: a PRR swing-down whose one-sign runs do not solve (from
+# the closed form the negative sign's start is out of reach, the positive one runs 500
+# iterations to 4.6e7) where the seed's one switch (0.653 s) solves at 1068 in 0.25 s
+PRR_SWING_DOWN = zoo_problem(
+    "prr_swing_down",
+    arm("PRR", (0.681, 6.891), (1.167, 4.226), (0.432, 0.292), branch="forward"),
+    {
+        "duration": 1.157,
+        "start": at_rest(-0.1469, 0.7821, 90),
+        "goal": at_rest(0.1043, 0.1475, -90),
+    },
+    gamma_min=1.21,
+    gamma_switches="auto",
+    smooth_torque=True,
+    refine_basis=False,
+)

@@ -5,9 +5,14 @@ issue 30).
 1. **Seed** (:func:`cpopt.flatopt.seed.coarse_seed`): where the unconstrained optimum's gamma
    crosses zero gives the switch times and the signs between them.
 2. **The bound**: the plans with the fewest switches the pins allow (one sign where nothing is
-   pinned; each allowed sign from the closed form, the seed's favourite first) are cheap and
-   bound everything after: no plan costlier than the best of them is returned, and a later
-   run that they dominate (:func:`~cpopt.flatopt.switching.dominated`) is abandoned.
+   pinned; each allowed sign from the closed form, the seed's favourite first, for
+   :data:`BOUND_FIRST` iterations) are cheap and bound everything after: no plan costlier
+   than the best of them is returned, and a later run that they dominate
+   (:func:`~cpopt.flatopt.switching.dominated`) is abandoned. After the seed's pattern they
+   get their second starts (:func:`_bound_again`): a run cut at :data:`BOUND_FIRST` goes on to
+   :data:`ONE_SIGN_LIMIT`, and a start from the seed is made where none solved or where the
+   seed has that sign throughout, while the best plan is more than :data:`POLISH_GAIN` above
+   the seed.
 3. **Flat solve** of the seed's pattern, started from the seed (B-spline coefficients fitted to
    its CP, xi and eta from its state, :func:`cpopt.flatopt.warm_start.seeded_guess`). (A
    continuation in gamma_min, from a fraction of it up, was built and measured worse on the
