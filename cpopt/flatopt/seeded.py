@@ -61,9 +61,10 @@ from .switching import (
     Pattern,
     Search,
     Solve,
+    above_seed,
     agreeing,
-    agreement,
     dominated,
+    fewest_patterns,
     first_attempts,
     gamma_signs_on_grid,
     grow,
@@ -73,8 +74,8 @@ from .switching import (
     preference,
     seed_order,
     seed_pattern,
-    sign_assignments,
-    with_switches,
+    seed_throughout,
+    solve_pattern,
     within_budget,
 )
 
@@ -114,11 +115,10 @@ def worth_polishing(problem: Problem, best, seed: Seed) -> bool:
     without the regularity constraint (a lower bound up to its coarse grid's error), so it is
     compared only when the motion's duration is fixed (a seed keeps freed times at their
     guesses)."""
-    if best.status != "solved" or not math.isfinite(seed.report.objective):
-        return best.status == "solved"
-    if "duration" in problem.free:
-        return True
-    return best.objective > (1 + POLISH_GAIN) * seed.report.objective
+    if best.status != "solved":
+        return False
+    above = above_seed(problem, best, seed, POLISH_GAIN)
+    return True if above is None else above
 
 
 SWITCH_ITERATIONS = 500
@@ -139,19 +139,6 @@ abandon it."""
 NEAR = 0.1
 """A switch closer than this fraction of the motion to the start, the goal or a pinned via
 state gets alternatives (:func:`near_alternatives`)."""
-
-
-def solve_pattern(
-    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None, **options
-):
-    """Solve one pattern with its switch times held, started from the trajectory ``start``
-    (from the closed form through the nodes when it is None); ``limit``, ``abandon`` and the
-    ``options`` (a ``deadline``, ``refine_past_limit``) as in
-    :func:`cpopt.flatopt.solve_for_signs`."""
-    augmented, switches = with_switches(problem, pattern.times, free_times=False)
-    return solve(
-        augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon, **options
-    )
 
 
 def _better(a, b) -> bool:
@@ -391,8 +378,7 @@ def _one_sign_bound(run: Run):
     pinned), each allowed sign solved from the closed form for :data:`BOUND_FIRST`
     iterations, the seed's favourite first."""
     progress.stage("switch search: the one-sign plans (the bound)")
-    times = needed_times(run.problem)
-    patterns = [Pattern(times, signs) for signs in sign_assignments(run.problem, times)]
+    patterns = fewest_patterns(run.problem)
     tic = time.perf_counter()
     attempts = first_attempts(run.solve, run.problem, patterns, run.seed, BOUND_FIRST)
     run.stages["bound"].add_all(attempts, tic)
@@ -431,16 +417,13 @@ def _bound_again(run: Run, best, method: str, notes: list):
       optimum may be far above the seed's: a random PRR transfer solved at 43 times the seed's
       cost from the closed form and within 0.1 % of it from the seed, in 16 iterations).
     """
-    times = needed_times(run.problem)
-    patterns = [Pattern(times, signs) for signs in sign_assignments(run.problem, times)]
-    wanted = None
-    if run.seed.trajectory is not None:
-        wanted = gamma_signs_on_grid(run.problem, run.seed.trajectory)
+    seeded = run.seed.trajectory is not None
     started = 0
-    for pattern in seed_order(run.problem, patterns, run.seed):
+    for pattern in seed_order(run.problem, fewest_patterns(run.problem), run.seed):
         starts = [None] if _cut_short(run, pattern) else []
-        everywhere = wanted is not None and agreement(run.problem, pattern, wanted) == len(wanted)
-        if wanted is not None and (run.bound.status != "solved" or everywhere):
+        if seeded and (
+            run.bound.status != "solved" or seed_throughout(run.problem, pattern, run.seed)
+        ):
             starts.append(run.seed.trajectory)
         for start in starts:
             if time.monotonic() > run.deadline or not _may_gain(run.problem, best, run.seed):

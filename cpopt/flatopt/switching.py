@@ -384,6 +384,19 @@ def solve_from_nodes(
     )
 
 
+def solve_pattern(
+    solve: Solve, problem: Problem, pattern: Pattern, start, limit=None, abandon=None, **options
+):
+    """Solve one pattern with its switch times held, started from the trajectory ``start``
+    (from the closed form through the nodes when it is None); ``limit``, ``abandon`` and the
+    ``options`` (a ``deadline``, ``refine_past_limit``) as in
+    :func:`cpopt.flatopt.solve_for_signs`."""
+    augmented, switches = with_switches(problem, pattern.times, free_times=False)
+    return solve(
+        augmented, pattern.signs, switches, seed=start, limit=limit, abandon=abandon, **options
+    )
+
+
 DOMINATED_AFTER = 30
 """Iterations after which a run is abandoned at :data:`DOMINATED_FACTOR` times the best."""
 DOMINATED_FACTOR = 2.0
@@ -519,14 +532,34 @@ SEED_START_LIMIT = 500
 """Ipopt iterations a start from the seed gets before its first solved round."""
 
 
-def far_above_seed(problem: Problem, best, seed: Seed) -> bool:
-    """True when the solved plan ``best`` costs more than :data:`SEED_GAP` above the seed's
-    objective (the same functional without the regularity constraint, on a coarse grid; only
-    with the motion's duration fixed: a seed keeps freed times at their guesses)."""
-    if best.status != "solved" or "duration" in problem.free:
-        return False
+def above_seed(problem: Problem, best, seed: Seed, gap: float = SEED_GAP) -> bool | None:
+    """True when the plan ``best`` costs more than ``gap`` (relative) above the seed's
+    objective (the same functional without the regularity constraint, on a coarse grid);
+    None where the two do not compare: the motion's duration free (a seed keeps freed times
+    at their guesses) or a seed without an objective."""
     objective = seed.report.objective
-    return math.isfinite(objective) and best.objective > (1 + SEED_GAP) * objective
+    if "duration" in problem.free or not math.isfinite(objective):
+        return None
+    return best.objective > (1 + gap) * objective
+
+
+def far_above_seed(problem: Problem, best, seed: Seed) -> bool:
+    """True when ``best`` is solved and costs more than :data:`SEED_GAP` above the seed
+    (:func:`above_seed`; False where they do not compare)."""
+    return best.status == "solved" and above_seed(problem, best, seed) is True
+
+
+def seed_throughout(problem: Problem, pattern: Pattern, seed: Seed) -> bool:
+    """True when the seed's gamma has ``pattern``'s sign at every :data:`GRID` time."""
+    wanted = gamma_signs_on_grid(problem, seed.trajectory)
+    return agreement(problem, pattern, wanted) == len(wanted)
+
+
+def fewest_patterns(problem: Problem) -> list[Pattern]:
+    """The patterns with the fewest switches the pins allow (one sign where nothing is
+    pinned), one per allowed assignment of signs."""
+    times = needed_times(problem)
+    return [Pattern(times, signs) for signs in sign_assignments(problem, times)]
 
 
 def seed_start(solve: Solve, problem: Problem, patterns: list[Pattern], seed, attempts) -> list:
@@ -541,22 +574,13 @@ def seed_start(solve: Solve, problem: Problem, patterns: list[Pattern], seed, at
         return []
     best = _best(attempts)
     favourite = seed_order(problem, patterns, seed)[0]
-    wanted = gamma_signs_on_grid(problem, seed.trajectory)
-    throughout = agreement(problem, favourite, wanted) == len(wanted)
+    throughout = seed_throughout(problem, favourite, seed)
     if best.status == "solved" and not (throughout and far_above_seed(problem, best, seed)):
         return []
     abandon = dominated(best.objective, SEEDED_EARLIEST) if best.status == "solved" else None
-    augmented, switches = with_switches(problem, favourite.times, free_times=False)
-    attempt = solve(
-        augmented,
-        favourite.signs,
-        switches,
-        seed=seed.trajectory,
-        limit=SEED_START_LIMIT,
-        abandon=abandon,
-        refine_past_limit=True,
-    )
-    return [attempt]
+    options = {"refine_past_limit": True}
+    start = seed.trajectory
+    return [solve_pattern(solve, problem, favourite, start, SEED_START_LIMIT, abandon, **options)]
 
 
 def pattern_of(attempt) -> Pattern:
