@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from cpopt.flatopt import optimize, solve_for_signs
+from cpopt.flatopt.dominance import DOMINATED_EARLIEST, dominated
 from cpopt.flatopt.seed import (
     INSIDE,
     coarse_seed,
@@ -21,9 +22,7 @@ from cpopt.flatopt.seed import (
 )
 from cpopt.flatopt.seeded import worth_polishing
 from cpopt.flatopt.switching import (
-    DOMINATED_EARLIEST,
     Pattern,
-    dominated,
     first_attempts,
     grow,
     needed_times,

@@ -359,7 +359,7 @@ def solve_for_signs(
         Most Ipopt iterations over all rounds (a cheap attempt of the search's polish).
     abandon : callable, optional
         ``abandon(iteration, objective, infeasibility) -> bool``: stop a run another pattern
-        has clearly beaten (status ``dominated``, :func:`cpopt.flatopt.switching.dominated`).
+        has clearly beaten (status ``dominated``, :func:`cpopt.flatopt.dominance.dominated`).
     deadline : float
         ``time.monotonic()`` by which the solve returns what it has (status ``time_limit``
         when no round solved by then; a refinement round cut there keeps the last solved one).

@@ -8,7 +8,7 @@ issue 30).
    pinned; each allowed sign from the closed form, the seed's favourite first, for
    :data:`BOUND_FIRST` iterations) are cheap and bound everything after: no plan costlier
    than the best of them is returned, and a later run that they dominate
-   (:func:`~cpopt.flatopt.switching.dominated`) is abandoned. After the seed's pattern they
+   (:func:`~cpopt.flatopt.dominance.dominated`) is abandoned. After the seed's pattern they
    get their second starts (:func:`_bound_again`): a run cut at :data:`BOUND_FIRST` goes on to
    :data:`ONE_SIGN_LIMIT`, and a start from the seed is made where none solved or where the
    seed has that sign throughout, while the best plan is more than :data:`POLISH_GAIN` above
@@ -52,18 +52,16 @@ from ..closedform.nodes import MIN_PHASE
 from ..closedform.trajectory import sample
 from ..problem import MAX_SWITCHES, Problem
 from ..runtime import progress
+from .dominance import DOMINATED_EARLIEST, SEEDED_EARLIEST, dominated
 from .seed import Seed, coarse_seed, patterned_seed
 from .switching import (
-    DOMINATED_EARLIEST,
     POLISH_LIMIT,
-    SEEDED_EARLIEST,
     SIGN_WORDS,
     Pattern,
     Search,
     Solve,
     above_seed,
     agreeing,
-    dominated,
     fewest_patterns,
     first_attempts,
     gamma_signs_on_grid,
