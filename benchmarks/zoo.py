@@ -32,6 +32,10 @@ Usage::
     python benchmarks/zoo.py --count 30 --seed 1
     python benchmarks/zoo.py --count 3 --seed 0 --intervals 60 --save /tmp/zoo   # quick
     python benchmarks/zoo.py --count 30 --seed 1 --refine-basis   # the same draws, finer bases
+    python benchmarks/zoo.py --count 30 --seed 1 --refine-basis false   # the bases as drawn
+
+The draws leave ``optimizer.refine_basis`` at the schema's default (``auto``: a plan more than
+5 % above its collocation seed gets a finer basis) unless ``--refine-basis`` sets it.
 
 ``--save DIR`` writes each drawn problem (its ``auto`` version) as ``DIR/<name>.yaml``, so that
 a bad case can be run alone with ``cpopt solve``.
@@ -287,17 +291,19 @@ def zoo(
     intervals: int,
     time_limit: float,
     save: Path | None,
-    refine_basis: bool = False,
+    refine_basis: bool | str | None = None,
 ):
     """Draw and run ``count`` problems (with ``optimizer.refine_basis`` set to
-    ``refine_basis``); yields each Row, then the redraw count."""
+    ``refine_basis``, the schema's default when None); yields each Row, then the redraw
+    count."""
     rng = np.random.default_rng(seed)
     redraws = 0
     pool = collocation_pool()
     for i in range(count):
         for _ in range(MAX_REDRAWS):
             data = draw(rng, f"zoo{seed}_{i:02d}")
-            data["optimizer"]["refine_basis"] = refine_basis
+            if refine_basis is not None:
+                data["optimizer"]["refine_basis"] = refine_basis
             collocation = run_collocation(data, intervals, pool) if _valid(data) else None
             if collocation is not None and collocation > 0:
                 break
@@ -363,8 +369,11 @@ def main(argv=None) -> int:
     parser.add_argument("--save", type=Path, help="write the drawn problems here")
     parser.add_argument(
         "--refine-basis",
-        action="store_true",
-        help="set optimizer.refine_basis in every draw (the same draws: the flag draws nothing)",
+        nargs="?",
+        const="true",
+        choices=("auto", "true", "false"),
+        help="set optimizer.refine_basis in every draw (alone: true; default: the schema's, "
+        "auto; the same draws: the flag draws nothing)",
     )
     args = parser.parse_args(argv)
     rows: list[Row] = []
@@ -373,7 +382,8 @@ def main(argv=None) -> int:
         f"{'name':10s} {'problem':26s} {'colloc':>10s} {'one_sign':>10s} {'s':>5s} "
         f"{'auto':>10s} {'s':>5s} {'status':10s} pattern (auto) / search"
     )
-    runs = zoo(args.count, args.seed, args.intervals, args.time_limit, args.save, args.refine_basis)
+    refine = {"true": True, "false": False}.get(args.refine_basis, args.refine_basis)
+    runs = zoo(args.count, args.seed, args.intervals, args.time_limit, args.save, refine)
     for item in runs:
         if isinstance(item, int):
             redraws = item

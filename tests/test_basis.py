@@ -21,7 +21,7 @@ def test_a_finer_basis_halves_every_knot_interval():
     assert counts == [20, 32, 56]
     coarse, fine = SplineBasis(8, 14), SplineBasis(8, 20)
     assert set(np.round(coarse.breaks, 12)) <= set(np.round(fine.breaks, 12))
-    assert problem.spec.optimizer.refine_basis is False  # off unless asked
+    assert problem.spec.optimizer.refine_basis == "auto"  # refined only far above the seed
 
 
 def test_refining_the_basis_lowers_the_cost_and_reports_each_step():

@@ -116,3 +116,20 @@ PRR_SWING_DOWN = zoo_problem(
     smooth_torque=True,
     refine_basis=False,
 )
+
+# benchmarks/zoo.py --seed 31, draw 8: an RPR transfer with the link hanging whose seed keeps
+# gamma negative throughout; the one-sign plan of 14 coefficients a phase costs 301.96, 23.5 %
+# above its collocation seed (244.60), and the basis, not the sign, holds it back (20
+# coefficients: 260.4, 32: 249.94; collocation with N = 200: 244.03)
+RPR_TRANSFER_HANGING = zoo_problem(
+    "rpr_transfer_hanging",
+    arm("RPR", (1.548, 0.545), (0.865, 0.909), (1.178, 1.044)),
+    {
+        "duration": 1.469,
+        "start": at_rest(0.1381, 0.8491, -90),
+        "goal": at_rest(0.6354, 0.755, -90),
+    },
+    gamma_min=2.26,
+    gamma_switches="auto",
+    smooth_torque=True,
+)

@@ -34,7 +34,7 @@ from ..problem import Problem
 from ..runtime import progress
 from ..runtime.budget import remaining, stopped_by_time
 from ..runtime.solver import SolverStats, run_nlp
-from . import switching
+from . import basis, switching
 from .basis import refine_basis
 from .feasible_start import RESTORED, evaluable_start, restored_run
 from .path_timing import chosen_points
@@ -547,9 +547,9 @@ def result_of(search: switching.Search) -> OptimizeResult:
 
 def _search(problem: Problem, start: CPPlan | None, solve, deadline: float):
     """The search the problem asks for (started from ``start`` when given), its plan's basis
-    refined with ``refine_basis``."""
+    refined as ``refine_basis`` asks (:func:`cpopt.flatopt.basis.wanted`)."""
     o = problem.spec.optimizer
-    search, why_not = None, ""
+    search, why_not, started = None, "", time.monotonic()
     if start is not None:
         progress.stage("flat optimizer: started from the given plan")
         search, why_not = restart(problem, solve, start)
@@ -561,15 +561,28 @@ def _search(problem: Problem, start: CPPlan | None, solve, deadline: float):
             search = replace(
                 search, summary=summary, figures={**search.figures, "summary": summary}
             )
-    if o.refine_basis and search.best.status == "solved":
-        search = _with_finer_basis(problem, solve, search, deadline)
+    if basis.wanted(o.refine_basis, o.curve, search):
+        search = _with_finer_basis(problem, solve, search, (started, deadline))
     return search
 
 
-def _with_finer_basis(problem: Problem, solve, search, deadline: float):
+def _with_finer_basis(problem: Problem, solve, search, clock: tuple):
     """The search with its plan's basis refined (:func:`cpopt.flatopt.basis.refine_basis`):
-    the refinements among its attempts, their figures as ``solver.search.basis``."""
-    best, more, figures = refine_basis(problem, solve, search.best, deadline)
+    the refinements among its attempts, their figures as ``solver.search.basis``; ``clock``
+    the search's start and deadline (``time.monotonic()`` instants). With ``refine_basis:
+    auto`` the refinements stop within :data:`~cpopt.flatopt.basis.AUTO_GAP` of the seed and
+    by :func:`~cpopt.flatopt.basis.auto_deadline`."""
+    started, deadline = clock
+    gap = basis.seed_gap(search)
+    if problem.spec.optimizer.refine_basis == "auto":
+        seed_objective = search.best.objective / (1.0 + gap)
+        target = (1.0 + basis.AUTO_GAP) * seed_objective
+        deadline = basis.auto_deadline(started, deadline)
+        why = f"refined automatically, the plan {gap:.1%} above the seed"
+    else:
+        target, why = -math.inf, "refined as asked"
+    best, more, figures = refine_basis(problem, solve, search.best, deadline, target)
+    figures = {**figures, "seed_gap": gap, "summary": f"{why}; {figures['summary']}"}
     summary = f"{search.summary}; basis: {figures['summary']}"
     return replace(
         search,

@@ -10,6 +10,17 @@ interval of every phase halved (``n`` coefficients of degree ``d`` become ``2 (n
 a basis that holds the coarser one exactly), started from the plan, its switch times held,
 while a refinement lowers the cost by at least :data:`GAIN`, the schema's most coefficients
 allow one more (at most :data:`HALVINGS`), and the search's deadline has not passed.
+
+``refine_basis: auto`` (the default) refines only a plan that costs more than :data:`AUTO_GAP`
+above the seeded search's collocation seed (the same functional, solved by coarse collocation
+of the full dynamics: on the zoo's draws it was within 2 % of collocation with N = 200 wherever
+the flat plan matched it), stops once the plan is within that gap, and gives the refinements
+the time :func:`auto_deadline` allows. Measured on the draws of ``benchmarks/zoo.py --seed 31``
+with a plan 5 % or more above its seed (refinements unbounded in time): a one-sign RPR
+transfer 301.96 -> 249.94 (+0.7 s), a PPR swing-up 6809.6 -> 6460.3 after one round (+0.4 s),
+a PRR transfer 273.67 -> 223.1 after one round (+0.5 s; the second, 209.2, took 5.7 s), an
+RRR transfer 2836.6 -> 2630.7 (+0.3 s); a search whose seed has no plan, or no seeded search
+(``gamma_switches: 0``), is not refined.
 """
 
 from __future__ import annotations
@@ -17,6 +28,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import replace
+from typing import Literal
 
 from ..closedform.trajectory import sample
 from ..problem import MAX_COEFFICIENTS, Problem
@@ -33,6 +45,46 @@ feasible iterate stands): from the plan, a random RPR transfer took 99 (20 coeff
 HALVINGS = 2
 """Most refinements (14 coefficients of degree 8 become 20, then 32): a third, to 56, lowered
 the two plans above by 1.6 % and 1.7 % for 25 s and 28 s, and solved neither."""
+AUTO_GAP = 0.05
+"""``refine_basis: auto`` refines a plan whose objective is more than this fraction above its
+search's collocation seed's, while it stays so (:func:`seed_gap`). On 30 zoo draws of seed 31
+the plans within 5 % of their seed were within 6 % of collocation with N = 200; the nine
+above it were 1.05-2.6 times (the ones that were solved quickly, every one a basis gap)."""
+AUTO_MIN_TIME = 2.0
+"""Seconds ``refine_basis: auto`` may spend refining at least (:func:`auto_deadline`)."""
+AUTO_TIME_FACTOR = 1.0
+"""``refine_basis: auto`` may spend this multiple of the search's own time refining, when that
+is more than :data:`AUTO_MIN_TIME` (a refinement round from the plan took 0.1-0.5 s for 20
+coefficients and 0.4-8.6 s for 32 on the zoo's draws): a search that took long found a
+plan that is hard to improve, and doubling its time is the most the refinement adds."""
+
+
+def seed_gap(search) -> float:
+    """How far [fraction] the search's plan costs above its collocation seed (the seeded
+    search's ``seed`` figures), NaN without a solved seed with a positive objective."""
+    seed = search.figures.get("seed", {})
+    objective = seed.get("objective", math.nan)
+    if seed.get("status") != "solved" or not objective > 0:
+        return math.nan
+    return search.best.objective / objective - 1.0
+
+
+def auto_deadline(started: float, deadline: float) -> float:
+    """``time.monotonic()`` after which ``refine_basis: auto`` stops refining: the search's
+    time since ``started`` (a ``time.monotonic()`` instant) times :data:`AUTO_TIME_FACTOR`,
+    at least :data:`AUTO_MIN_TIME`, from now, and never past the search's ``deadline``."""
+    now = time.monotonic()
+    return min(deadline, now + max(AUTO_MIN_TIME, AUTO_TIME_FACTOR * (now - started)))
+
+
+def wanted(setting: bool | Literal["auto"], curve: str, search) -> bool:
+    """True when the search's solved plan gets its basis refined: ``refine_basis: true``, or
+    ``auto`` with B-spline curves and the plan more than :data:`AUTO_GAP` above its seed."""
+    if search.best.status != "solved":
+        return False
+    if setting == "auto":
+        return curve == "bspline" and seed_gap(search) > AUTO_GAP
+    return bool(setting)
 
 
 def finer(problem: Problem) -> Problem | None:
@@ -46,7 +98,9 @@ def finer(problem: Problem) -> Problem | None:
     return replace(problem, spec=problem.spec.model_copy(update={"optimizer": optimizer}))
 
 
-def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.inf) -> tuple:
+def refine_basis(
+    problem: Problem, solve: Solve, best, deadline: float = math.inf, target: float = -math.inf
+) -> tuple:
     """Refine the basis of a solved plan ``best`` (see the module docstring).
 
     Parameters
@@ -59,7 +113,11 @@ def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.in
     best : SignAttempt
         The search's plan (solved).
     deadline : float
-        ``time.monotonic()`` after which no refinement starts.
+        ``time.monotonic()`` after which no refinement starts (a refinement still running
+        then is stopped and not kept).
+    target : float
+        The objective at or below which no further refinement is made (``refine_basis:
+        auto``: :data:`AUTO_GAP` above the seed's).
 
     Returns
     -------
@@ -74,13 +132,18 @@ def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.in
         current = finer(current)
         if current is None:
             break
+        if best.objective <= target:
+            why = f"objective {best.objective:.6g} within {AUTO_GAP:.0%} of the seed's: stopped"
+            break
         if time.monotonic() > deadline:
-            why = "search deadline reached"
+            why = "refinement deadline reached"
             break
         count = current.spec.optimizer.coefficients
         progress.stage(f"flat optimizer: the plan's basis refined to {count} coefficients")
         step_tic = time.perf_counter()
-        attempt = solve_pattern(solve, current, pattern_of(best), sample(best.plan), ITERATIONS)
+        start = sample(best.plan)
+        attempt = solve_pattern(solve, current, pattern_of(best), start, ITERATIONS,
+                                deadline=deadline)  # fmt: skip
         attempts.append(attempt)
         steps.append({"coefficients": count, "status": attempt.status,
                       "objective": attempt.objective, "iterations": attempt.iterations,
@@ -90,7 +153,8 @@ def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.in
             why = f"{count} coefficients did not solve ({attempt.status}): stopped"
             break
         if gain < GAIN:
-            why = f"{count} coefficients lowered the cost by {gain:.2%}: stopped"
+            change = f"lowered the cost by {gain:.2%}" if gain >= 0 else "did not lower the cost"
+            why = f"{count} coefficients {change}: stopped"
             break
         best = attempt
         why = f"{count} coefficients: the most refinements ({HALVINGS})"
@@ -98,4 +162,16 @@ def refine_basis(problem: Problem, solve: Solve, best, deadline: float = math.in
     return best, attempts, figures
 
 
-__all__ = ["GAIN", "HALVINGS", "ITERATIONS", "finer", "refine_basis"]
+__all__ = [
+    "AUTO_GAP",
+    "AUTO_MIN_TIME",
+    "AUTO_TIME_FACTOR",
+    "GAIN",
+    "HALVINGS",
+    "ITERATIONS",
+    "auto_deadline",
+    "finer",
+    "refine_basis",
+    "seed_gap",
+    "wanted",
+]

@@ -229,7 +229,7 @@ class OptimizerSpec(_Spec):
     gamma_sign: list[Literal["auto", "positive", "negative"]] | None = None
     gamma_switches: Literal["auto"] | Annotated[int, WHOLE, Field(ge=0, le=MAX_SWITCHES)] = 0
     switch_search: Literal["seed", "greedy"] = "seed"
-    refine_basis: bool = False
+    refine_basis: bool | Literal["auto"] = "auto"
     smooth_torque: bool = True
     samples: Annotated[int, WHOLE, Field(ge=10, le=1000)] = 50
     limits: LimitsSpec = LimitsSpec()

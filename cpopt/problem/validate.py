@@ -333,12 +333,12 @@ def _check_optimizer(spec: ProblemSpec, phases: int, source: str) -> None:
             f"phase, and optimizer.coefficients is {o.coefficients}: lower the degree or raise "
             "the coefficients",
         )
-    if o.refine_basis and o.curve != "bspline":
+    if o.refine_basis is True and o.curve != "bspline":
         raise ProblemError(
             source,
             "optimizer.refine_basis",
             f"refine_basis halves a B-spline's knot intervals, and optimizer.curve is "
-            f"{o.curve}: use curve: bspline or leave refine_basis false",
+            f"{o.curve}: use curve: bspline, or refine_basis auto or false",
         )
     count = o.coefficients if o.curve == "bspline" else o.degree + 1
     if o.curve != "path_timing" and count < 2 * ends:
