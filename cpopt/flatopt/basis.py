@@ -13,8 +13,9 @@ allow one more (at most :data:`HALVINGS`), and the search's deadline has not pas
 
 ``refine_basis: auto`` (the default) refines only a plan that costs more than :data:`AUTO_GAP`
 above the seeded search's collocation seed (the same functional, solved by coarse collocation
-of the full dynamics: on the zoo's draws it was within 2 % of collocation with N = 200 wherever
-the flat plan matched it), stops once the plan is within that gap, and gives the refinements
+of the full dynamics, N = 30: on the 30 draws of ``benchmarks/zoo.py --seed 31`` within 3.3 %
+of collocation with N = 200 on 26, below it on two where N = 200 found a worse local optimum,
+5.6 % and 7.5 % above on two), stops once the plan is within that gap, and gives the refinements
 the time :func:`auto_deadline` allows. Measured on the draws of ``benchmarks/zoo.py --seed 31``
 with a plan 5 % or more above its seed (refinements unbounded in time): a one-sign RPR
 transfer 301.96 -> 249.94 (+0.7 s), a PPR swing-up 6809.6 -> 6460.3 after one round (+0.4 s),
@@ -48,8 +49,8 @@ the two plans above by 1.6 % and 1.7 % for 25 s and 28 s, and solved neither."""
 AUTO_GAP = 0.05
 """``refine_basis: auto`` refines a plan whose objective is more than this fraction above its
 search's collocation seed's, while it stays so (:func:`seed_gap`). On 30 zoo draws of seed 31
-the plans within 5 % of their seed were within 6 % of collocation with N = 200; the nine
-above it were 1.05-2.6 times (the ones that were solved quickly, every one a basis gap)."""
+the 21 plans within 5 % of their seed were within 6.5 % of collocation with N = 200; of the
+nine above it, the five solved within 3 s each cost 3-18 % less with a finer basis."""
 AUTO_MIN_TIME = 2.0
 """Seconds ``refine_basis: auto`` may spend refining at least (:func:`auto_deadline`)."""
 AUTO_TIME_FACTOR = 1.0
@@ -136,7 +137,7 @@ def refine_basis(
             why = f"objective {best.objective:.6g} within {AUTO_GAP:.0%} of the seed's: stopped"
             break
         if time.monotonic() > deadline:
-            why = "refinement deadline reached"
+            why = "deadline reached"
             break
         count = current.spec.optimizer.coefficients
         progress.stage(f"flat optimizer: the plan's basis refined to {count} coefficients")
