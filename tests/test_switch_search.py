@@ -157,7 +157,9 @@ def test_the_seeded_start_fits_the_seed_and_keeps_the_signs(transfer, transfer_s
         # to the link's pose (flatopt.pose_fit); before that fit they did not (1094 iterations
         # from the seed) and an alternative near the via state (1.2 s) solved at 484.1 or
         # 501.5, two local optima which the rounding picked (issue 30: the greedy search had
-        # kept one sign)
+        # kept one sign). That plan is 25.6 % above its seed, so refine_basis: auto solves it
+        # again in a finer basis: 435.5 (measured, here and on CI) until the search's deadline;
+        # unconstrained collocation N = 200 is 374.9
         (ROOT / "problems" / "prr_swing_up.yaml", "seed", ("seed", "near")),
     ],
     ids=["rpr transfer seed", "rpr transfer greedy", "prr swing-up seed"],
@@ -174,7 +176,9 @@ def test_no_search_raises_on_an_unseen_problem(path, search, method):
     one_sign = [a.objective for a in d.sign_choices if a.status == "solved" and not a.switch_times]
     assert result.status == "solved" and result.solver.objective <= min(one_sign) * (1 + 1e-9)
     if path.name == "prr_swing_up.yaml":
-        assert 0.99 * 479.3 < result.solver.objective < 1.01 * 501.5
+        # a machine too slow for the refinement keeps 479.3 (or 484.1, 501.5); none goes
+        # below the unconstrained optimum
+        assert 0.99 * 374.9 < result.solver.objective < 1.01 * 501.5
         assert result.solver.objective < 0.2 * min(one_sign)
 
 
