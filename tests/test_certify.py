@@ -1,14 +1,17 @@
 """A flat solve's plan counts as solved only with its |gamma| certified above gamma_min, and a
-dip between the samples gets a cluster of points (flatopt.refine.gamma_dips)."""
+dip between the samples gets a cluster of points (flatopt.refine.gamma_dips), and so does an
+elbow nearly stretched between them (flatopt.refine.reach_dips)."""
 
 from dataclasses import replace
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 
 import cpopt
+from cpopt.closedform.trajectory import flat_states
 from cpopt.flatopt import solved_if_certified
-from cpopt.flatopt.refine import DIP_CLUSTER, gamma_dips
+from cpopt.flatopt.refine import DIP_CLUSTER, REACH_CHECK_SAMPLES, gamma_dips, reach_dips
 from cpopt.runtime.solver import NlpRun
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,3 +78,27 @@ def test_the_built_nlps_are_kept_up_to_the_cache_size(monkeypatch):
     assert transcribe.cached_structures() == 2
     assert transcribe.build(problem, (1,)) is not first
     assert transcribe.build(problem, (1,), warm=True) is transcribe.build(problem, (1,), warm=True)
+
+
+def test_an_elbow_nearly_stretched_between_samples_gets_points_there():
+    """The paper's transfer on an arm whose first two links reach just past the plan's farthest
+    wrist point (a millionth further): there the elbow is within sin q2 = 0.003 of stretched,
+    below the samples' bound 0.01, so the check adds the cluster around that time (and
+    points along the stretch); on the paper's arm it adds none."""
+    problem, plan, _ = _paper_plan()
+    times = [n.t for n in plan.nodes]
+    assert not any(reach_dips(problem, plan, times))
+    t = np.concatenate([np.linspace(a, b, REACH_CHECK_SAMPLES) for a, b in pairwise(times)])
+    phase = np.repeat(np.arange(len(plan.phases)), REACH_CHECK_SAMPLES)
+    _, z = flat_states(plan, t, phase)
+    far = int(np.argmax(np.hypot(z[:, 0] - plan.arm.base[0], z[:, 1] - plan.arm.base[1])))
+    reach = float(np.hypot(z[far, 0] - plan.arm.base[0], z[far, 1] - plan.arm.base[1]))
+    first, second = plan.arm.links[:2]
+    scale = reach * (1 + 1e-6) / (first.length + second.length)
+    links = tuple(replace(k, length=scale * k.length) for k in (first, second))
+    stretched = replace(plan, arm=replace(plan.arm, links=links + plan.arm.links[2:]))
+    dips = reach_dips(problem, stretched, times)
+    k = int(phase[far])
+    s = round(far % REACH_CHECK_SAMPLES / (REACH_CHECK_SAMPLES - 1), 9)
+    assert {round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0.0, 1.0)} <= dips[k]
+    assert sum(map(len, dips)) < 40  # one stretch: its cluster and eight points along it
