@@ -85,9 +85,9 @@ def test_an_elbow_nearly_stretched_between_samples_gets_points_there():
     wrist point (a millionth further): there the elbow is within sin q2 = 0.003 of stretched,
     below the samples' bound 0.01, so the check adds the cluster around that time (and
     points along the stretch); on the paper's arm it adds none."""
-    problem, plan, _ = _paper_plan()
+    _, plan, _ = _paper_plan()
     times = [n.t for n in plan.nodes]
-    assert not any(reach_dips(problem, plan, times))
+    assert not any(reach_dips(plan, times))
     t = np.concatenate([np.linspace(a, b, REACH_CHECK_SAMPLES) for a, b in pairwise(times)])
     phase = np.repeat(np.arange(len(plan.phases)), REACH_CHECK_SAMPLES)
     _, z = flat_states(plan, t, phase)
@@ -97,7 +97,7 @@ def test_an_elbow_nearly_stretched_between_samples_gets_points_there():
     scale = reach * (1 + 1e-6) / (first.length + second.length)
     links = tuple(replace(k, length=scale * k.length) for k in (first, second))
     stretched = replace(plan, arm=replace(plan.arm, links=links + plan.arm.links[2:]))
-    dips = reach_dips(problem, stretched, times)
+    dips = reach_dips(stretched, times)
     k = int(phase[far])
     s = round(far % REACH_CHECK_SAMPLES / (REACH_CHECK_SAMPLES - 1), 9)
     assert {round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0.0, 1.0)} <= dips[k]

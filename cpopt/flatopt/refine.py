@@ -65,6 +65,22 @@ them, which the NLP moves a little each round when it gets one point only: a ran
 swing-down ended its refinements at a certified 0.001 m/s^2."""
 
 
+def dip_points(s: float) -> set[float]:
+    """:data:`DIP_CLUSTER` around the normalised time ``s``, within the phase (rounded to
+    1e-9, the key under which the grids merge points)."""
+    return {round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0.0, 1.0)}
+
+
+STRETCH_POINTS = 8
+"""About how many points a stretch of a failed check gets along it."""
+
+
+def thinned(points) -> list:
+    """About :data:`STRETCH_POINTS` of a stretch's sorted points, evenly picked."""
+    points = sorted(points)
+    return points[:: max(1, len(points) // STRETCH_POINTS)]
+
+
 def gamma_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     """Per phase, the normalised times where the certified |gamma| is below gamma_min, each
     with :data:`DIP_CLUSTER` around it (within the phase)."""
@@ -73,8 +89,7 @@ def gamma_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     for k, ph in enumerate(plan.phases):
         for value, t in ph.curve.piece_minima((0.0, problem.arm.gravity)):
             if value < target:
-                s = (t - times[k]) / (times[k + 1] - times[k])
-                found[k].update(round(float(x), 9) for x in np.clip(s + DIP_CLUSTER, 0, 1))
+                found[k] |= dip_points((t - times[k]) / (times[k + 1] - times[k]))
     return found
 
 
@@ -104,11 +119,12 @@ REACH_CHECK_SAMPLES = 2001
 alone, no inverse kinematics: 3.4 ms a phase)."""
 
 
-def reach_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
+def reach_dips(plan: CPPlan, times: list) -> list[set]:
     """Per phase, the normalised times where the reach margin falls below the samples' bound
     (:data:`cpopt.flatopt.transcribe.REACH_EPS`; an RRR elbow closer than sin q2 = 0.01 to
     stretched) on a grid of :data:`REACH_CHECK_SAMPLES`: each stretch's deepest point with
-    :data:`DIP_CLUSTER` around it, and eight points along it.
+    :data:`DIP_CLUSTER` around it (:func:`dip_points`), and points along it
+    (:func:`thinned`).
 
     Near the edge the joint rates grow like 1 / sin q2 and the torques faster: a random RRR
     swing-up (zoo seed 63) kept sin q2 >= 0.01 at its samples and passed 0.0006 between them,
@@ -126,24 +142,21 @@ def reach_dips(problem: Problem, plan: CPPlan, times: list) -> list[set]:
         short = (margin < eps * (1 - 1e-6)).astype(int)
         edges = np.flatnonzero(np.diff(np.r_[0, short, 0]))  # each stretch's start and end
         for a, b in zip(edges[::2], edges[1::2], strict=True):
-            deepest = s[a + int(np.argmin(margin[a:b]))]
-            along = s[a:b][:: max(1, (b - a) // 8)]
-            points = np.r_[np.clip(deepest + DIP_CLUSTER, 0, 1), along]
-            found[k].update(round(float(x), 9) for x in points)
+            found[k] |= dip_points(s[a + int(np.argmin(margin[a:b]))])
+            found[k].update(round(float(x), 9) for x in thinned(s[a:b]))
     return found
 
 
 def between_samples(problem: Problem, plan: CPPlan, times: list) -> list[set]:
     """Per phase, the normalised times where gamma_min, the reach margin or a limit fails
     between samples."""
-    gamma, reach = gamma_dips(problem, plan, times), reach_dips(problem, plan, times)
+    gamma, reach = gamma_dips(problem, plan, times), reach_dips(plan, times)
     found = [a | b for a, b in zip(gamma, reach, strict=True)]
     excursions = limit_excursions(problem, plan, times)
     if excursions is None:
         return found
     # a few points per stretch of a limit's violation (found on a fine grid) are enough
-    thinned = [set(sorted(f)[:: max(1, len(f) // 8)]) for f in excursions]
-    return [a | b for a, b in zip(found, thinned, strict=True)]
+    return [a | set(thinned(b)) for a, b in zip(found, excursions, strict=True)]
 
 
 INTEGRAL_TERMS = frozenset({"torque", "energy", "v_squared"})
