@@ -3,6 +3,7 @@ pattern it suggests, the warm start fitted to it (its values inside their bounds
 seed that ends at the holding torque where the flat plan does, a fit that keeps the arm's
 pose), and a search that never raises."""
 
+import time
 from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
@@ -20,7 +21,13 @@ from cpopt.flatopt.seed import (
     patterned_seed,
     seeded_values,
 )
-from cpopt.flatopt.seeded import worth_polishing
+from cpopt.flatopt.seeded import (
+    BOUND_FIRST,
+    RESERVED_SHARE,
+    Run,
+    reserved_for_bound,
+    worth_polishing,
+)
 from cpopt.flatopt.switching import (
     Pattern,
     first_attempts,
@@ -432,3 +439,25 @@ def test_a_best_plan_that_fails_verification_gives_way_to_the_next_solved_one(mo
     best = min(a.objective for a in solution.solver.details.sign_choices if a.status == "solved")
     assert best < solution.solver.objective <= 3424.8 * (1 + 1e-3)
     assert len(calls) == 2 and calls[1] is solution.plan
+
+
+def test_the_seeds_pattern_leaves_the_cut_one_sign_run_its_share_of_the_time(transfer):
+    """While the seed's pattern runs, the search's deadline is RESERVED_SHARE of the time left
+    when no one-sign plan solved and one was cut at BOUND_FIRST iterations; it is restored
+    after, and untouched when the bound solved or no run was cut."""
+    start = time.monotonic()
+    run = Run(transfer, solve=None, seed=None, deadline=start + 10.0)
+    cut = SimpleNamespace(status="not_converged", iterations=BOUND_FIRST, signs=("positive",))
+    run.opening, run.bound, notes = [cut], cut, []
+    with reserved_for_bound(run, notes):
+        left = run.deadline - start
+    assert RESERVED_SHARE * 10.0 <= left < RESERVED_SHARE * 10.0 + 0.05  # + half the time taken
+    assert run.deadline == start + 10.0
+    assert notes == ["50% of the time left kept for the one-sign plans"]
+    solved = SimpleNamespace(**{**vars(cut), "status": "solved"})
+    short = SimpleNamespace(**{**vars(cut), "iterations": BOUND_FIRST - 1})
+    for bound, opening in [(solved, [cut]), (cut, [short])]:
+        run.bound, run.opening = bound, opening
+        with reserved_for_bound(run, notes):
+            assert run.deadline == start + 10.0
+    assert len(notes) == 1

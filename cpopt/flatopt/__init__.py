@@ -44,6 +44,7 @@ from .refine import (
     between_samples,
     cost_kept,
     quadrature_gaps,
+    unrefined_flaw,
     violations,
 )
 from .restart import restart
@@ -370,6 +371,7 @@ def solve_for_signs(
     grids = initial_grids(problem)
     exact = seed is not None and exact_plan(seed)
     previous, iterations, build_time, solve_time = None, 0, 0.0, 0.0
+    plan = times = None  # the last unpacked round's: the previous one when a round is cut
     refinements = 0
     pattern = pattern_label(signs, len(switches))
     for round_ in range(1, 2 + MAX_REFINEMENTS):
@@ -385,14 +387,18 @@ def solve_for_signs(
         run = run_nlp(nlp.solver, nlp.reporter, label, left, abandon, deadline, True, **arguments)
         solve_time += run.solve_time_s
         iterations += run.iterations
-        if run.status == "time_limit" and round_ > 1:  # the last solved round stands
+        if run.status == "time_limit" and round_ > 1:  # the last solved round stands, if it may
             nlp, run = previous
+            run = _checked_at_deadline(problem, run, plan, times, nlp)
             break
         run = restored_run(nlp, arguments, run, deadline)  # a cut run's nearly feasible iterate
         run, plan, times, terms = _unpacked(problem, nlp, run, arguments, signs, switches)
         if previous is not None and run.status == "solved":
             run = cost_kept(run, previous[1], refinements)
-        if run.status != "solved" or time.monotonic() > deadline:
+        if run.status != "solved":
+            break
+        if time.monotonic() > deadline:  # no time to refine: the next round's checks, once
+            run = _checked_at_deadline(problem, run, plan, times, nlp)
             break
         dips = between_samples(problem, plan, times)
         gaps = quadrature_gaps(problem, plan, nlp)
@@ -404,6 +410,14 @@ def solve_for_signs(
     run = solved_if_certified(problem, run, plan, refinements)
     counts = (iterations, refinements, build_time, solve_time)
     return _attempt(nlp, run, arguments["p"], (plan, times, terms), signs, switches, counts)
+
+
+def _checked_at_deadline(problem: Problem, run, plan: CPPlan, times: list, nlp: FlatNLP):
+    """The solved run of a plan the deadline kept from its refinement rounds,
+    ``not_converged`` when the next round's checks find it mispriced
+    (:func:`~cpopt.flatopt.refine.unrefined_flaw`)."""
+    flaw = unrefined_flaw(problem, plan, times, nlp)
+    return run if flaw is None else replace(run, status="not_converged", return_status=flaw)
 
 
 def solved_if_certified(problem: Problem, run, plan: CPPlan, refinements: int):

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from ..closedform.nodes import MIN_PHASE
@@ -292,9 +293,8 @@ class Run:
         tic = time.perf_counter()
         left = self.iterations_left if cap is None else cap
         limit = None if math.isinf(left) else max(int(left), 1)
-        result = solve_pattern(
-            self.solve, self.problem, pattern, start, limit, refine_past_limit=True, **options
-        )
+        options = {"refine_past_limit": True, "deadline": self.deadline, **options}
+        result = solve_pattern(self.solve, self.problem, pattern, start, limit, **options)
         self.stages[stage].add(result, tic)
         self.tried.append(result)
         self.iterations_left -= result.iterations if cap is None else 0
@@ -337,13 +337,14 @@ def search(problem: Problem, solve: Solve, deadline: float = math.inf) -> Search
     elif run.late():
         notes.append("search deadline reached before the seed's pattern")
     else:
-        seeded = _seeded_attempt(run, pattern)
-        if seeded is not None and _better(seeded, best):
-            best, method = seeded, "seed"
-        notes.append(_verdict(seeded, run))
-        failed = seeded is None or seeded.status != "solved"
-        if failed:  # a solved plan's near switches: the polish drops them
-            best, method = _near(run, pattern, best, method)
+        with reserved_for_bound(run, notes):
+            seeded = _seeded_attempt(run, pattern)
+            if seeded is not None and _better(seeded, best):
+                best, method = seeded, "seed"
+            notes.append(_verdict(seeded, run))
+            failed = seeded is None or seeded.status != "solved"
+            if failed:  # a solved plan's near switches: the polish drops them
+                best, method = _near(run, pattern, best, method)
         best, method = _bound_again(run, best, method, notes)
         best, method = _polished(run, best, method, notes)
         if failed and method == "one_sign" and not run.late():
@@ -369,6 +370,30 @@ run cut there gets the rest of :data:`ONE_SIGN_LIMIT` after it (:func:`_bound_ag
 against the best plan solved by then. Most solved runs need far fewer (the zoo's median 26);
 the runs that do not solve spent seconds there (a random PRR swing-down's two signs: 3.1 s
 for 500 iterations at 4.6e7, where its seed's pattern then solved in 0.25 s at 1068)."""
+
+
+RESERVED_SHARE = 0.5
+"""The share of the time left after the bound's first runs that the seed's pattern and its
+alternatives near the nodes may take when no one-sign plan solved and one was cut at
+:data:`BOUND_FIRST` (:func:`reserved_for_bound`)."""
+
+
+@contextmanager
+def reserved_for_bound(run: Run, notes: list):
+    """Within it, the run's deadline is :data:`RESERVED_SHARE` of the time left, when the
+    bound has no solved plan and a run of it was cut short (:func:`_cut_short`): that run's
+    second start (:func:`_bound_again`) keeps the rest. Without the reserve, at an 8-s limit
+    a random PRR swing-down's seeded pattern took every second left and did not solve, where
+    the one-sign plan solves in 4 s alone: ``auto`` returned no plan."""
+    deadline, now = run.deadline, time.monotonic()
+    cut = any(_cut_short(run, p) for p in fewest_patterns(run.problem))
+    if run.bound.status != "solved" and cut and math.isfinite(deadline) and now < deadline:
+        run.deadline = now + RESERVED_SHARE * (deadline - now)
+        notes.append(f"{1 - RESERVED_SHARE:.0%} of the time left kept for the one-sign plans")
+    try:
+        yield
+    finally:
+        run.deadline = deadline
 
 
 def _one_sign_bound(run: Run):
@@ -407,22 +432,26 @@ def _bound_again(run: Run, best, method: str, notes: list):
     """The one-sign plans' fair chance, after the seed's pattern, for each allowed sign (the
     seed's favourite first) while the best plan may still gain (:func:`_may_gain`):
 
-    * a run from the closed form cut at :data:`BOUND_FIRST` runs again to
-      :data:`ONE_SIGN_LIMIT`, abandoned once the best solved plan dominates it;
     * a start from the seed, when no one-sign plan solved (the closed form through the nodes
       may leave the arm's reach, its torques then not numbers, where the seed, a joint-space
       plan, stays inside) or when the seed has that sign throughout (the closed form's local
       optimum may be far above the seed's: a random PRR transfer solved at 43 times the seed's
-      cost from the closed form and within 0.1 % of it from the seed, in 16 iterations).
+      cost from the closed form and within 0.1 % of it from the seed, in 16 iterations);
+    * then a run from the closed form cut at :data:`BOUND_FIRST` runs again to
+      :data:`ONE_SIGN_LIMIT`, abandoned once the best solved plan dominates it. (Run first, it
+      solved a random PRR swing-down at 1.39 times the seed's start's cost, which the 8-s
+      limit then cut.)
     """
     seeded = run.seed.trajectory is not None
     started = 0
     for pattern in seed_order(run.problem, fewest_patterns(run.problem), run.seed):
-        starts = [None] if _cut_short(run, pattern) else []
+        starts = []
         if seeded and (
             run.bound.status != "solved" or seed_throughout(run.problem, pattern, run.seed)
         ):
             starts.append(run.seed.trajectory)
+        if _cut_short(run, pattern):  # after the seed's start: this one failed once already
+            starts.append(None)
         for start in starts:
             if time.monotonic() > run.deadline or not _may_gain(run.problem, best, run.seed):
                 break
