@@ -230,8 +230,9 @@ def unrefined_flaw(problem: Problem, plan: CPPlan, times: list, nlp: FlatNLP) ->
     8-s limit) priced 31 874 there and 4.6e5 on the zoo's fine grid, its elbow nearly stretched
     between samples, and as ``solved`` it beat the one-sign plan (24 828). So the checks the
     next round would have made run once: the reach margin between samples, and the whole
-    quadrature against the fine integral (:data:`DEADLINE_COST_TOL`). gamma and the reach are
-    certified for every plan anyway (:func:`cpopt.flatopt.solved_if_certified`)."""
+    quadrature against the fine integral (:data:`DEADLINE_COST_TOL`). gamma_min and the arm's
+    reach itself (not its margin) are certified for every plan anyway
+    (:func:`cpopt.flatopt.solved_if_certified`)."""
     if any(reach_dips(plan, times)):
         return "Reach_Margin_Not_Certified_At_Deadline"
     per_phase = quadrature_pieces(problem, plan, nlp)
